@@ -1,0 +1,228 @@
+"""The matrix-Fisher distribution over rotation matrices, ``p(R | F) = exp(tr(F^T R)) / c(F)``."""
+
+from __future__ import annotations
+
+import roma
+import torch
+from torch.distributions import Distribution, constraints
+from torch.distributions.utils import lazy_property
+
+from hkpd.distributions.bingham_sampler import (
+    draw_accepted_noise,
+    kent_optimal_b,
+    log_envelope_constant,
+    proposal_transform,
+)
+from hkpd.distributions.normalizer import (
+    log_normalizer_and_expectation,
+    matrix_fisher_log_normalizer,
+)
+from hkpd.distributions.proper_svd import proper_svd
+
+
+class _RotationMatrices(constraints.Constraint):
+    """Support of the distribution: 3x3 matrices with ``R^T R = I`` and ``det R = +1``."""
+
+    event_dim = 2
+
+    def check(self, value: torch.Tensor) -> torch.Tensor:
+        tolerance = 1e-3 if value.dtype in (torch.float16, torch.bfloat16, torch.float32) else 1e-6
+        eye = torch.eye(3, dtype=value.dtype, device=value.device)
+        orthogonal = ((value.transpose(-1, -2) @ value - eye).abs() <= tolerance).flatten(-2).all(-1)
+        proper = (torch.linalg.det(value) - 1.0).abs() <= tolerance
+        return orthogonal & proper
+
+
+rotation_matrices = _RotationMatrices()
+
+
+def _frame_quaternion_map(U: torch.Tensor, V: torch.Tensor) -> torch.Tensor:
+    """The 4x4 orthogonal map ``x -> q_U * x * conj(q_V)`` on XYZW quaternions, per distribution.
+
+    Since quaternion products compose rotations, ``rotmat(q_U * x * conj(q_V)) = U rotmat(x) V^T``.
+    The map is linear in ``x``; its matrix is found by applying roma's quaternion product to the
+    four basis quaternions.
+
+    Args:
+        U, V: ``(N, 3, 3)`` rotation matrices.
+
+    Returns:
+        ``(N, 4, 4)`` matrices ``P`` with ``P @ x`` the transformed quaternion.
+    """
+    q_u = roma.rotmat_to_unitquat(U).unsqueeze(-2)  # (N, 1, 4)
+    q_v_conj = roma.quat_conjugation(roma.rotmat_to_unitquat(V)).unsqueeze(-2)
+    basis = torch.eye(4, dtype=U.dtype, device=U.device).expand(U.shape[0], 4, 4)
+    images = roma.quat_product(roma.quat_product(q_u, basis), q_v_conj)  # row j = P e_j
+    return images.transpose(-1, -2)
+
+
+def _bingham_eigenvalues(S: torch.Tensor) -> torch.Tensor:
+    """Diagonal of the Bingham matrix ``A`` for proper singular values ``S (..., 3)`` -> ``(..., 4)``.
+
+    For a rotation ``Q`` with quaternion ``(x, y, z, w)``,
+    ``tr(diag(S) Q) = s1 + s2 + s3 - 2 ((s2+s3) x^2 + (s1+s3) y^2 + (s1+s2) z^2)``, i.e.
+    ``sum(S) - q^T A q`` with, in roma's XYZW order, ``A = diag(2(s2+s3), 2(s1+s3), 2(s1+s2), 0)`` (the paper's Algorithm 1 lists
+    the same entries in WXYZ order).
+    """
+    s1, s2, s3 = S.unbind(-1)
+    return torch.stack(
+        (2.0 * (s2 + s3), 2.0 * (s1 + s3), 2.0 * (s1 + s2), torch.zeros_like(s1)), dim=-1
+    ).clamp_min(0.0)
+
+
+class MatrixFisher(Distribution):
+    """Matrix-Fisher distribution ``M(R; F)`` on SO(3).
+
+    Args:
+        F: ``(..., 3, 3)`` parameter matrix. Batch shape ``F.shape[:-2]``, event shape ``(3, 3)``.
+        validate_args: as in :class:`torch.distributions.Distribution`.
+
+    With the proper SVD ``F = U diag(s1, s2, s3) V^T`` (``U, V`` in SO(3), ``s1 >= s2 >= |s3|``)
+    the mode is ``U V^T``, the columns of ``U`` are the principal axes and the concentration for
+    rotations about axis i is ``s_j + s_k``. The normaliser uses the Haar probability measure,
+    so ``log c(0) = 0`` and ``F = 0`` is the uniform distribution.
+
+    After :meth:`rsample`/:meth:`sample`, ``last_acceptance_rate`` holds the fraction of
+    proposals the rejection sampler accepted for each distribution (batch shape).
+    """
+
+    arg_constraints = {"F": constraints.independent(constraints.real, 2)}
+    support = rotation_matrices
+    has_rsample = True
+
+    def __init__(self, F: torch.Tensor, validate_args: bool | None = None) -> None:
+        if F.dim() < 2 or F.shape[-2:] != (3, 3):
+            raise ValueError(f"F must have shape (..., 3, 3), got {tuple(F.shape)}")
+        if not F.is_floating_point():
+            raise TypeError(f"F must be a floating-point tensor, got dtype {F.dtype}")
+        self.F = F
+        self.last_acceptance_rate: torch.Tensor | None = None
+        super().__init__(batch_shape=F.shape[:-2], event_shape=(3, 3), validate_args=validate_args)
+
+    # ----------------------------------------------------------------------------- structure
+    @lazy_property
+    def _svd(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        return proper_svd(self.F)
+
+    @property
+    def U(self) -> torch.Tensor:
+        """``(..., 3, 3)`` left proper-SVD factor; its columns are the principal axes."""
+        return self._svd[0]
+
+    @property
+    def S(self) -> torch.Tensor:
+        """``(..., 3)`` proper singular values ``s1 >= s2 >= |s3|``."""
+        return self._svd[1]
+
+    @property
+    def V(self) -> torch.Tensor:
+        """``(..., 3, 3)`` right proper-SVD factor."""
+        return self._svd[2]
+
+    @property
+    def mode(self) -> torch.Tensor:
+        """``(..., 3, 3)`` most likely rotation, ``U V^T``."""
+        return self.U @ self.V.transpose(-1, -2)
+
+    @property
+    def concentration(self) -> torch.Tensor:
+        """``(..., 3)`` concentration ``s_j + s_k`` for rotations about each principal axis i."""
+        s1, s2, s3 = self.S.unbind(-1)
+        return torch.stack((s2 + s3, s1 + s3, s1 + s2), dim=-1)
+
+    # ------------------------------------------------------------------------------ density
+    @lazy_property
+    def log_normalizer(self) -> torch.Tensor:
+        """``(...)`` log c(F), differentiable with respect to ``F``."""
+        return matrix_fisher_log_normalizer(self.S)
+
+    @property
+    def mean(self) -> torch.Tensor:
+        """``(..., 3, 3)`` E[R] = d log c / dF = ``U diag(E[Q_ii]) V^T`` (not a rotation).
+
+        Computed analytically by quadrature, without gradients.
+        """
+        with torch.no_grad():
+            expected = log_normalizer_and_expectation(self.S)[1]
+            return self.U @ torch.diag_embed(expected) @ self.V.transpose(-1, -2)
+
+    def log_prob(self, value: torch.Tensor) -> torch.Tensor:
+        """Log density of rotations ``value (..., 3, 3)`` w.r.t. the Haar probability measure."""
+        if self._validate_args:
+            self._validate_sample(value)
+        return (self.F * value).sum((-1, -2)) - self.log_normalizer
+
+    def entropy(self) -> torch.Tensor:
+        """``(...)`` differential entropy w.r.t. the Haar probability measure (<= 0, 0 if uniform)."""
+        expected = log_normalizer_and_expectation(self.S)[1]
+        return self.log_normalizer - (self.S * expected).sum(-1)
+
+    # ----------------------------------------------------------------------------- sampling
+    @lazy_property
+    def _proposal(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Flattened Bingham eigenvalues ``(N, 4)``, Kent's ``b (N,)`` and frame map ``(N, 4, 4)``."""
+        lambdas = _bingham_eigenvalues(self.S.reshape(-1, 3))
+        frame_map = _frame_quaternion_map(self.U.reshape(-1, 3, 3), self.V.reshape(-1, 3, 3))
+        return lambdas, kent_optimal_b(lambdas), frame_map
+
+    @property
+    def expected_acceptance_rate(self) -> torch.Tensor:
+        """``(...)`` exact acceptance probability of the Kent rejection sampler for these F.
+
+        Equals ``|Omega|^(1/2) * 1F1(-A) / M`` with ``1F1(-A) = c(F) exp(-sum s)``.
+        """
+        with torch.no_grad():
+            lambdas = _bingham_eigenvalues(self.S)
+            b = kent_optimal_b(lambdas)
+            omega = 1.0 + 2.0 * lambdas / b.unsqueeze(-1)
+            log_rate = (
+                0.5 * torch.log(omega).sum(-1)
+                + self.log_normalizer
+                - self.S.sum(-1)
+                - log_envelope_constant(b)
+            )
+            return torch.exp(log_rate)
+
+    def rsample(
+        self, sample_shape: torch.Size | tuple[int, ...] = torch.Size(),
+        generator: torch.Generator | None = None,
+    ) -> torch.Tensor:
+        """Reparameterised samples via the paper's Algorithm 1.
+
+        Args:
+            sample_shape: leading sample dimensions.
+            generator: optional random generator.
+
+        Returns:
+            ``sample_shape + batch_shape + (3, 3)`` rotation matrices; gradients flow to ``F``
+            through the proposal (for fixed noise) and through ``U`` and ``V``.
+        """
+        sample_shape = torch.Size(sample_shape)
+        count = sample_shape.numel()
+        lambdas, b, frame_map = self._proposal
+        drawn = draw_accepted_noise(lambdas, b, count, generator=generator)
+        self.last_acceptance_rate = drawn.acceptance_rate.reshape(self.batch_shape)
+        quaternions = proposal_transform(lambdas, b, drawn.noise, frame_map)
+        R = roma.unitquat_to_rotmat(quaternions.transpose(0, 1))  # (count, N, 3, 3)
+        return R.reshape(sample_shape + self.batch_shape + (3, 3))
+
+    def sample(
+        self, sample_shape: torch.Size | tuple[int, ...] = torch.Size(),
+        generator: torch.Generator | None = None,
+    ) -> torch.Tensor:
+        """Like :meth:`rsample`, without gradients."""
+        with torch.no_grad():
+            return self.rsample(sample_shape, generator=generator)
+
+    def expand(self, batch_shape, _instance=None) -> MatrixFisher:
+        batch_shape = torch.Size(batch_shape)
+        return MatrixFisher(self.F.expand(batch_shape + (3, 3)), validate_args=False)
+
+    def with_singular_values(self, S: torch.Tensor) -> MatrixFisher:
+        """A distribution with the same principal axes and mode but proper singular values ``S``.
+
+        Args:
+            S: ``(..., 3)`` new proper singular values, broadcastable to the batch shape.
+        """
+        F = self.U @ torch.diag_embed(S) @ self.V.transpose(-1, -2)
+        return MatrixFisher(F, validate_args=self._validate_args)

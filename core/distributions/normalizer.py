@@ -1,0 +1,132 @@
+"""The matrix-Fisher normalising constant ``c(F)`` and its gradient.
+
+With the Haar *probability* measure on SO(3) (so ``c(0) = 1``),
+
+    c(F) = E_R[exp(tr(F^T R))],
+
+which depends only on the proper singular values ``S = (s1, s2, s3)`` of ``F``. Writing a
+rotation as a unit quaternion turns ``c`` into a Bingham normaliser on the 3-sphere; pairing
+the quaternion's coordinates and integrating out the two circle angles leaves one dimension:
+
+    c(S) = exp(s1 + s2 + s3) * J(S),
+    J(S) = int_0^1 I0e(p (1 - t)) exp(-2 q t) I0e(r t) dt,
+    p = s1 + s2,  q = s2 + s3,  r = s1 - s2,
+
+where ``I0e(x) = exp(-x) I0(x)``. For a proper SVD ``p, q, r >= 0``, so every factor lies in
+(0, 1]: nothing overflows, even at ``s = 1e5``. The integrand has boundary layers of width
+``1/q``, ``1/r`` at ``t = 0`` and ``1/p`` at ``t = 1``; tanh-sinh (double-exponential)
+quadrature resolves layers of any width, so a fixed set of 121 nodes is accurate to ~1e-9
+relative for all ``0 <= s <= 1e5`` and batches vectorise without branching.
+
+For tiny ``S`` the quadrature cannot resolve ``log c ~ |S|^2 / 6`` against its own round-off, so
+``max|s| < 1e-2`` uses the Taylor series of ``log c`` (through fifth order; the first neglected
+term is ~1e-3 |S|^6).
+
+The gradient ``d log c / d s_i = E[Q_ii]`` (``Q = U^T R V``) comes from the same nodes by
+differentiating the integrand, using ``d I0e(x)/dx = I1e(x) - I0e(x)``. All arithmetic is done
+in float64 and cast back to the input dtype.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import torch
+
+_TANH_SINH_HALF_COUNT = 60
+_TANH_SINH_STEP = 0.07
+_SERIES_LIMIT = 1e-2
+
+
+@functools.lru_cache(maxsize=8)
+def _tanh_sinh_nodes(device: torch.device) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Tanh-sinh nodes on (0, 1): ``t``, ``1 - t`` (both computed without cancellation), weights.
+
+    Returns three float64 tensors of shape ``(N,)``.
+    """
+    k = torch.arange(-_TANH_SINH_HALF_COUNT, _TANH_SINH_HALF_COUNT + 1, dtype=torch.float64)
+    x = k * _TANH_SINH_STEP
+    u = 0.5 * math.pi * torch.sinh(x)
+    t = torch.sigmoid(2.0 * u)
+    t_complement = torch.sigmoid(-2.0 * u)
+    weights = _TANH_SINH_STEP * 0.25 * math.pi * torch.cosh(x) / torch.cosh(u) ** 2
+    keep = weights > 0
+    return t[keep].to(device), t_complement[keep].to(device), weights[keep].to(device)
+
+
+def _log_c_series(S: torch.Tensor) -> torch.Tensor:
+    """Taylor series of log c for small ``S`` (..., 3), float64; error ~1e-3 |S|^6."""
+    s1, s2, s3 = S.unbind(-1)
+    sq1, sq2, sq3 = s1 * s1, s2 * s2, s3 * s3
+    sum_sq = sq1 + sq2 + sq3
+    triple = s1 * s2 * s3
+    quartic = sq1 * sq1 + sq2 * sq2 + sq3 * sq3 - sq1 * sq2 - sq1 * sq3 - sq2 * sq3
+    return sum_sq / 6.0 + triple / 6.0 - quartic / 180.0 - triple * sum_sq / 90.0
+
+
+def log_normalizer_and_expectation(S: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``log c`` and ``E[Q_ii] = d log c / d s_i`` from proper singular values (no autograd).
+
+    Args:
+        S: ``(..., 3)`` proper singular values, ``s1 >= s2 >= |s3|``.
+
+    Returns:
+        ``log_c (...)`` and ``expected_diagonal (..., 3)``, in the dtype of ``S``.
+    """
+    S64 = S.detach().to(torch.float64)
+    s1, s2, s3 = S64.unbind(-1)
+    # Clamp guards against round-off making a proper-SVD quantity slightly negative.
+    p = (s1 + s2).clamp_min(0.0).unsqueeze(-1)
+    q = (s2 + s3).clamp_min(0.0).unsqueeze(-1)
+    r = (s1 - s2).clamp_min(0.0).unsqueeze(-1)
+    t, tc, w = _tanh_sinh_nodes(S64.device)
+    i0e_p = torch.special.i0e(p * tc)
+    i0e_r = torch.special.i0e(r * t)
+    weighted = w * i0e_p * torch.exp(-2.0 * q * t) * i0e_r
+    J = weighted.sum(-1)
+    log_c = S64.sum(-1) + torch.log(J)
+    small = S64.abs().amax(-1) < _SERIES_LIMIT
+    log_c = torch.where(small, _log_c_series(S64), log_c)
+
+    ratio_p = torch.special.i1e(p * tc) / i0e_p - 1.0
+    ratio_r = torch.special.i1e(r * t) / i0e_r - 1.0
+    d_p = (weighted * tc * ratio_p).sum(-1) / J
+    d_q = (weighted * (-2.0 * t)).sum(-1) / J
+    d_r = (weighted * t * ratio_r).sum(-1) / J
+    expected = torch.stack((1.0 + d_p + d_r, 1.0 + d_p + d_q - d_r, 1.0 + d_q), dim=-1)
+    return log_c.to(S.dtype), expected.to(S.dtype)
+
+
+class _LogNormalizer(torch.autograd.Function):
+    @staticmethod
+    def forward(S: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:  # type: ignore[override]
+        return log_normalizer_and_expectation(S)
+
+    @staticmethod
+    def setup_context(ctx, inputs, output) -> None:  # type: ignore[override]
+        _, expected = output
+        ctx.save_for_backward(expected)
+        ctx.mark_non_differentiable(expected)
+
+    @staticmethod
+    @torch.autograd.function.once_differentiable
+    def backward(ctx, grad_log_c, _grad_expected):  # type: ignore[override]
+        (expected,) = ctx.saved_tensors
+        return grad_log_c.unsqueeze(-1) * expected
+
+
+def matrix_fisher_log_normalizer(S: torch.Tensor) -> torch.Tensor:
+    """``log c(S)`` for proper singular values, differentiable with respect to ``S``.
+
+    Args:
+        S: ``(..., 3)`` proper singular values (``s1 >= s2 >= |s3|``), any float dtype.
+
+    Returns:
+        ``(...)`` log normalising constant (Haar probability measure, so ``log c(0) = 0``).
+        Its gradient is ``E[Q_ii]``, computed by quadrature rather than by autograd.
+    """
+    if S.shape[-1] != 3:
+        raise ValueError(f"expected proper singular values of shape (..., 3), got {tuple(S.shape)}")
+    log_c, _ = _LogNormalizer.apply(S)
+    return log_c

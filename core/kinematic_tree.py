@@ -1,0 +1,102 @@
+"""The SMPL 24-joint kinematic tree shared by the distributions, the body model and the network.
+
+Joint 0 (``pelvis``) is the root; its rotation is the *global* rotation. The remaining 23 joints
+are the *body* joints whose rotations, relative to their parents, make up the pose. Every parent
+index is smaller than its child's, so iterating in index order visits parents first.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+SMPL_JOINT_NAMES: tuple[str, ...] = (
+    "pelvis",
+    "left_hip",
+    "right_hip",
+    "spine1",
+    "left_knee",
+    "right_knee",
+    "spine2",
+    "left_ankle",
+    "right_ankle",
+    "spine3",
+    "left_foot",
+    "right_foot",
+    "neck",
+    "left_collar",
+    "right_collar",
+    "head",
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
+    "left_hand",
+    "right_hand",
+)
+"""Names of SMPL's 24 joints, in SMPL's order."""
+
+SMPL_PARENTS: tuple[int, ...] = (
+    -1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21,
+)  # fmt: skip
+"""Parent of each of the 24 SMPL joints (-1 for the root)."""
+
+BODY_JOINT_NAMES: tuple[str, ...] = SMPL_JOINT_NAMES[1:]
+"""Names of the 23 body (non-root) joints whose relative rotations form the pose."""
+
+BODY_PARENTS: tuple[int, ...] = tuple(p - 1 for p in SMPL_PARENTS[1:])
+"""Parent of each body joint, indexed among the 23 body joints; -1 means "the root (pelvis)"."""
+
+
+def validate_parents(parents: Sequence[int]) -> tuple[int, ...]:
+    """Check that ``parents`` describes a kinematic forest in topological order.
+
+    Args:
+        parents: length-J sequence; ``parents[j]`` is the index of joint j's parent, or -1 when
+            joint j hangs from the root frame.
+
+    Returns:
+        The parents as a tuple of ints.
+
+    Raises:
+        ValueError: if an entry is not -1 and not the index of an earlier joint.
+    """
+    checked = tuple(int(p) for p in parents)
+    for joint, parent in enumerate(checked):
+        if parent != -1 and not 0 <= parent < joint:
+            raise ValueError(
+                f"parents[{joint}] = {parent}: each parent must be -1 (the root) or the index of "
+                "an earlier joint, so that parents come before their children."
+            )
+    return checked
+
+
+def depth_levels(parents: Sequence[int]) -> list[list[int]]:
+    """Group joints by their depth in the tree, so each level can be processed in one batch.
+
+    Args:
+        parents: a valid parents sequence (see :func:`validate_parents`).
+
+    Returns:
+        ``levels[d]`` lists the joints at depth d (depth 0 = joints whose parent is -1).
+    """
+    checked = validate_parents(parents)
+    depth: list[int] = []
+    for parent in checked:
+        depth.append(0 if parent == -1 else depth[parent] + 1)
+    levels: list[list[int]] = [[] for _ in range(max(depth, default=-1) + 1)]
+    for joint, d in enumerate(depth):
+        levels[d].append(joint)
+    return levels
+
+
+def ancestors(parents: Sequence[int], joint: int) -> list[int]:
+    """Ancestors of ``joint``, nearest first (excluding the root frame, which has index -1)."""
+    checked = validate_parents(parents)
+    chain: list[int] = []
+    parent = checked[joint]
+    while parent != -1:
+        chain.append(parent)
+        parent = checked[parent]
+    return chain
