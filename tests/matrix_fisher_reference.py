@@ -51,7 +51,9 @@ def reference_expected_diagonal(s1: float, s2: float, s3: float, digits: int = 3
             minus = list(values)
             plus[i] += step
             minus[i] -= step
-            difference = reference_log_c(*plus, digits=digits) - reference_log_c(*minus, digits=digits)
+            difference = reference_log_c(*plus, digits=digits) - reference_log_c(
+                *minus, digits=digits
+            )
             result.append(float(difference / (2 * step)))
         return result
 

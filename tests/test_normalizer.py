@@ -46,7 +46,9 @@ def relative_error(value: float, reference: mp.mpf) -> float:
 def test_log_normalizer_matches_reference_over_grid() -> None:
     S = torch.tensor(GRID, dtype=torch.float64)
     log_c = matrix_fisher_log_normalizer(S)
-    errors = [relative_error(float(v), reference_log_c(*s)) for v, s in zip(log_c, GRID)]
+    errors = [
+        relative_error(float(v), reference_log_c(*s)) for v, s in zip(log_c, GRID, strict=True)
+    ]
     worst = max(range(len(GRID)), key=errors.__getitem__)
     assert errors[worst] <= 1e-6, f"relative error {errors[worst]:.2e} at S={GRID[worst]}"
 
@@ -105,9 +107,10 @@ def test_log_prob_passes_gradcheck() -> None:
 
 def test_float32_is_finite_and_close_to_float64() -> None:
     torch.manual_seed(2)
-    F64 = torch.randn(64, 3, 3, dtype=torch.float64) * torch.logspace(-3, 5, 64, dtype=torch.float64)[
-        :, None, None
-    ]
+    F64 = (
+        torch.randn(64, 3, 3, dtype=torch.float64)
+        * torch.logspace(-3, 5, 64, dtype=torch.float64)[:, None, None]
+    )
     log_c64 = MatrixFisher(F64).log_normalizer
     F32 = F64.float().requires_grad_()
     log_c32 = MatrixFisher(F32).log_normalizer
@@ -121,4 +124,6 @@ def test_expected_diagonal_limits() -> None:
     assert torch.allclose(at_zero, torch.zeros(3, dtype=torch.float64), atol=1e-12)
     _, concentrated = log_normalizer_and_expectation(torch.full((3,), 1e5, dtype=torch.float64))
     # E[Q_ii] -> 1 - 1/(2 s) for large isotropic s: the mean approaches the mode.
-    assert torch.allclose(concentrated, torch.full((3,), 1 - 1 / 2e5, dtype=torch.float64), atol=1e-8)
+    assert torch.allclose(
+        concentrated, torch.full((3,), 1 - 1 / 2e5, dtype=torch.float64), atol=1e-8
+    )

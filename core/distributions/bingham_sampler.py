@@ -119,13 +119,17 @@ def draw_accepted_noise(
     rows = torch.arange(count, device=device)
     while num_samples > 0 and rows.numel() > 0:
         round_size = _round_size(int((num_samples - filled[rows]).max()))
-        eps = torch.randn(rows.numel(), round_size, 4, device=device, dtype=dtype, generator=generator)
+        eps = torch.randn(
+            rows.numel(), round_size, 4, device=device, dtype=dtype, generator=generator
+        )
         y_norm_sq, y_a_y = torch.bmm(eps * eps, quadratic_weights[rows]).unbind(-1)
         x_a_x = y_a_y / y_norm_sq
         # exp(-x^T A x) (x^T Omega x)^2 / M, using x^T Omega x = 1 + (2/b) x^T A x.
         x_omega_x = 1.0 + two_over_b[rows] * x_a_x
         ratio = torch.exp(-x_a_x) * (x_omega_x * x_omega_x) * inv_m[rows]
-        uniform = torch.rand(rows.numel(), round_size, device=device, dtype=dtype, generator=generator)
+        uniform = torch.rand(
+            rows.numel(), round_size, device=device, dtype=dtype, generator=generator
+        )
         accept = uniform < ratio
         slot = torch.cumsum(accept, dim=1) - 1 + filled[rows].unsqueeze(-1)
         take = accept & (slot < num_samples)

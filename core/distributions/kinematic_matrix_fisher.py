@@ -9,6 +9,7 @@ rotations into global ones, and per-joint concentration edits.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import ClassVar
 
 import torch
 from torch.distributions import Distribution, constraints
@@ -43,8 +44,8 @@ def compose_global_rotations(
         )
     if root is not None:
         batch = torch.broadcast_shapes(relative.shape[:-3], root.shape[:-2])
-        relative = relative.expand(batch + relative.shape[-3:])
-        root = root.expand(batch + (3, 3))
+        relative = relative.expand(*batch, *relative.shape[-3:])
+        root = root.expand(*batch, 3, 3)
     global_rot = relative.clone()
     for level in depth_levels(parent_list):
         index = torch.tensor(level, device=relative.device)
@@ -70,7 +71,9 @@ class KinematicMatrixFisher(Distribution):
         validate_args: as in :class:`torch.distributions.Distribution`.
     """
 
-    arg_constraints = {"F": constraints.independent(constraints.real, 3)}
+    arg_constraints: ClassVar[dict[str, constraints.Constraint]] = {
+        "F": constraints.independent(constraints.real, 3)
+    }
     support = constraints.independent(rotation_matrices, 1)
     has_rsample = True
 
@@ -131,7 +134,8 @@ class KinematicMatrixFisher(Distribution):
         return self.joints.entropy().sum(-1)
 
     def rsample(
-        self, sample_shape: int | torch.Size | tuple[int, ...] = torch.Size(),
+        self,
+        sample_shape: int | torch.Size | tuple[int, ...] = (),
         generator: torch.Generator | None = None,
     ) -> torch.Tensor:
         """Reparameterised samples of all relative rotations.
@@ -149,7 +153,8 @@ class KinematicMatrixFisher(Distribution):
         return self.joints.rsample(torch.Size(sample_shape), generator=generator)
 
     def sample(
-        self, sample_shape: int | torch.Size | tuple[int, ...] = torch.Size(),
+        self,
+        sample_shape: int | torch.Size | tuple[int, ...] = (),
         generator: torch.Generator | None = None,
     ) -> torch.Tensor:
         """Like :meth:`rsample`, without gradients."""
@@ -168,7 +173,7 @@ class KinematicMatrixFisher(Distribution):
     def scale_concentration(
         self, joints: int | Sequence[int] | torch.Tensor, factor: float | torch.Tensor
     ) -> KinematicMatrixFisher:
-        """A new distribution whose proper singular values are multiplied by ``factor`` for ``joints``.
+        """A new distribution with the selected joints' proper singular values times ``factor``.
 
         Principal axes and modes are unchanged; the concentrations ``s_j + s_k`` of the selected
         joints scale by ``factor``. This is what the explorer's concentration sliders do.

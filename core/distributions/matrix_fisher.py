@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import roma
 import torch
 from torch.distributions import Distribution, constraints
@@ -28,7 +30,9 @@ class _RotationMatrices(constraints.Constraint):
     def check(self, value: torch.Tensor) -> torch.Tensor:
         tolerance = 1e-3 if value.dtype in (torch.float16, torch.bfloat16, torch.float32) else 1e-6
         eye = torch.eye(3, dtype=value.dtype, device=value.device)
-        orthogonal = ((value.transpose(-1, -2) @ value - eye).abs() <= tolerance).flatten(-2).all(-1)
+        orthogonal = (
+            ((value.transpose(-1, -2) @ value - eye).abs() <= tolerance).flatten(-2).all(-1)
+        )
         proper = (torch.linalg.det(value) - 1.0).abs() <= tolerance
         return orthogonal & proper
 
@@ -57,12 +61,12 @@ def _frame_quaternion_map(U: torch.Tensor, V: torch.Tensor) -> torch.Tensor:
 
 
 def _bingham_eigenvalues(S: torch.Tensor) -> torch.Tensor:
-    """Diagonal of the Bingham matrix ``A`` for proper singular values ``S (..., 3)`` -> ``(..., 4)``.
+    """Diagonal ``(..., 4)`` of the Bingham matrix ``A`` for proper singular values ``(..., 3)``.
 
     For a rotation ``Q`` with quaternion ``(x, y, z, w)``,
     ``tr(diag(S) Q) = s1 + s2 + s3 - 2 ((s2+s3) x^2 + (s1+s3) y^2 + (s1+s2) z^2)``, i.e.
-    ``sum(S) - q^T A q`` with, in roma's XYZW order, ``A = diag(2(s2+s3), 2(s1+s3), 2(s1+s2), 0)`` (the paper's Algorithm 1 lists
-    the same entries in WXYZ order).
+    ``sum(S) - q^T A q`` with, in roma's XYZW order, ``A = diag(2(s2+s3), 2(s1+s3), 2(s1+s2), 0)``
+    (the paper's Algorithm 1 lists the same entries in WXYZ order).
     """
     s1, s2, s3 = S.unbind(-1)
     return torch.stack(
@@ -86,7 +90,9 @@ class MatrixFisher(Distribution):
     proposals the rejection sampler accepted for each distribution (batch shape).
     """
 
-    arg_constraints = {"F": constraints.independent(constraints.real, 2)}
+    arg_constraints: ClassVar[dict[str, constraints.Constraint]] = {
+        "F": constraints.independent(constraints.real, 2)
+    }
     support = rotation_matrices
     has_rsample = True
 
@@ -153,14 +159,14 @@ class MatrixFisher(Distribution):
         return (self.F * value).sum((-1, -2)) - self.log_normalizer
 
     def entropy(self) -> torch.Tensor:
-        """``(...)`` differential entropy w.r.t. the Haar probability measure (<= 0, 0 if uniform)."""
+        """``(...)`` differential entropy w.r.t. Haar probability (<= 0, 0 iff uniform)."""
         expected = log_normalizer_and_expectation(self.S)[1]
         return self.log_normalizer - (self.S * expected).sum(-1)
 
     # ----------------------------------------------------------------------------- sampling
     @lazy_property
     def _proposal(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Flattened Bingham eigenvalues ``(N, 4)``, Kent's ``b (N,)`` and frame map ``(N, 4, 4)``."""
+        """Flattened Bingham eigenvalues ``(N, 4)``, Kent's ``b (N,)``, frame map ``(N, 4, 4)``."""
         lambdas = _bingham_eigenvalues(self.S.reshape(-1, 3))
         frame_map = _frame_quaternion_map(self.U.reshape(-1, 3, 3), self.V.reshape(-1, 3, 3))
         return lambdas, kent_optimal_b(lambdas), frame_map
@@ -184,7 +190,8 @@ class MatrixFisher(Distribution):
             return torch.exp(log_rate)
 
     def rsample(
-        self, sample_shape: torch.Size | tuple[int, ...] = torch.Size(),
+        self,
+        sample_shape: torch.Size | tuple[int, ...] = (),
         generator: torch.Generator | None = None,
     ) -> torch.Tensor:
         """Reparameterised samples via the paper's Algorithm 1.
@@ -207,7 +214,8 @@ class MatrixFisher(Distribution):
         return R.reshape(sample_shape + self.batch_shape + (3, 3))
 
     def sample(
-        self, sample_shape: torch.Size | tuple[int, ...] = torch.Size(),
+        self,
+        sample_shape: torch.Size | tuple[int, ...] = (),
         generator: torch.Generator | None = None,
     ) -> torch.Tensor:
         """Like :meth:`rsample`, without gradients."""
@@ -216,7 +224,7 @@ class MatrixFisher(Distribution):
 
     def expand(self, batch_shape, _instance=None) -> MatrixFisher:
         batch_shape = torch.Size(batch_shape)
-        return MatrixFisher(self.F.expand(batch_shape + (3, 3)), validate_args=False)
+        return MatrixFisher(self.F.expand(*batch_shape, 3, 3), validate_args=False)
 
     def with_singular_values(self, S: torch.Tensor) -> MatrixFisher:
         """A distribution with the same principal axes and mode but proper singular values ``S``.
