@@ -192,3 +192,21 @@ def test_no_nan_or_inf(F: torch.Tensor, dtype: torch.dtype) -> None:
     assert torch.allclose(
         samples.transpose(-1, -2) @ samples, torch.eye(3, dtype=dtype).expand(64, 3, 3), atol=1e-4
     )
+
+
+def test_with_singular_values_reuses_the_decomposition() -> None:
+    distribution = MatrixFisher(parameter((6.0, 2.0, -1.0), seed=17))
+    distribution.sample((2,))  # builds the sampler's frame map
+    edited = distribution.with_singular_values(distribution.S * 2.5)
+    assert edited.U is distribution.U and edited.V is distribution.V
+    fresh = MatrixFisher(edited.F)
+    assert torch.allclose(edited.S, fresh.S) and torch.allclose(edited.mode, fresh.mode)
+    assert torch.allclose(edited.log_normalizer, fresh.log_normalizer)
+    generator_state = 18
+    assert torch.allclose(
+        edited.sample((5,), generator=torch.Generator().manual_seed(generator_state)),
+        fresh.sample((5,), generator=torch.Generator().manual_seed(generator_state)),
+        atol=1e-10,
+    )
+    with pytest.raises(ValueError, match="s1 >= s2"):
+        distribution.with_singular_values(torch.tensor([1.0, 2.0, 0.0], dtype=torch.float64))

@@ -53,8 +53,8 @@ def _frame_quaternion_map(U: torch.Tensor, V: torch.Tensor) -> torch.Tensor:
     Returns:
         ``(N, 4, 4)`` matrices ``P`` with ``P @ x`` the transformed quaternion.
     """
-    q_u = roma.rotmat_to_unitquat(U).unsqueeze(-2)  # (N, 1, 4)
-    q_v_conj = roma.quat_conjugation(roma.rotmat_to_unitquat(V)).unsqueeze(-2)
+    q_u, q_v = roma.rotmat_to_unitquat(torch.cat((U, V))).unsqueeze(-2).chunk(2)  # (N, 1, 4) each
+    q_v_conj = roma.quat_conjugation(q_v)
     basis = torch.eye(4, dtype=U.dtype, device=U.device).expand(U.shape[0], 4, 4)
     images = roma.quat_product(roma.quat_product(q_u, basis), q_v_conj)  # row j = P e_j
     return images.transpose(-1, -2)
@@ -165,11 +165,15 @@ class MatrixFisher(Distribution):
 
     # ----------------------------------------------------------------------------- sampling
     @lazy_property
-    def _proposal(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Flattened Bingham eigenvalues ``(N, 4)``, Kent's ``b (N,)``, frame map ``(N, 4, 4)``."""
+    def _proposal(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Flattened Bingham eigenvalues ``(N, 4)`` and Kent's ``b (N,)``."""
         lambdas = _bingham_eigenvalues(self.S.reshape(-1, 3))
-        frame_map = _frame_quaternion_map(self.U.reshape(-1, 3, 3), self.V.reshape(-1, 3, 3))
-        return lambdas, kent_optimal_b(lambdas), frame_map
+        return lambdas, kent_optimal_b(lambdas)
+
+    @lazy_property
+    def _frame_map(self) -> torch.Tensor:
+        """``(N, 4, 4)`` quaternion map into the frames of ``U`` and ``V`` (see sampler)."""
+        return _frame_quaternion_map(self.U.reshape(-1, 3, 3), self.V.reshape(-1, 3, 3))
 
     @property
     def expected_acceptance_rate(self) -> torch.Tensor:
@@ -206,10 +210,10 @@ class MatrixFisher(Distribution):
         """
         sample_shape = torch.Size(sample_shape)
         count = sample_shape.numel()
-        lambdas, b, frame_map = self._proposal
+        lambdas, b = self._proposal
         drawn = draw_accepted_noise(lambdas, b, count, generator=generator)
         self.last_acceptance_rate = drawn.acceptance_rate.reshape(self.batch_shape)
-        quaternions = proposal_transform(lambdas, b, drawn.noise, frame_map)
+        quaternions = proposal_transform(lambdas, b, drawn.noise, self._frame_map)
         R = roma.unitquat_to_rotmat(quaternions.transpose(0, 1))  # (count, N, 3, 3)
         return R.reshape(sample_shape + self.batch_shape + (3, 3))
 
@@ -229,8 +233,20 @@ class MatrixFisher(Distribution):
     def with_singular_values(self, S: torch.Tensor) -> MatrixFisher:
         """A distribution with the same principal axes and mode but proper singular values ``S``.
 
+        The new distribution reuses this one's ``U``, ``V`` and sampler frame map instead of
+        recomputing an SVD, so concentration edits (the explorer's sliders) stay cheap.
+
         Args:
-            S: ``(..., 3)`` new proper singular values, broadcastable to the batch shape.
+            S: ``(..., 3)`` new proper singular values in proper order (``s1 >= s2 >= |s3|``),
+                broadcastable to the batch shape; e.g. the current ones times a factor >= 0.
         """
+        S = S.expand(*self.batch_shape, 3)
+        if ((S[..., 0] < S[..., 1]) | (S[..., 1] < S[..., 2].abs())).any():
+            raise ValueError("singular values must satisfy s1 >= s2 >= |s3|")
         F = self.U @ torch.diag_embed(S) @ self.V.transpose(-1, -2)
-        return MatrixFisher(F, validate_args=self._validate_args)
+        edited = MatrixFisher(F, validate_args=self._validate_args)
+        # lazy_property caches in the instance dict, so seeding it skips the recomputation.
+        edited._svd = (self.U, S, self.V)
+        if "_frame_map" in self.__dict__:
+            edited._frame_map = self._frame_map
+        return edited
