@@ -1,0 +1,47 @@
+"""The training batch: what the synthetic data generator yields and the training loop consumes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import torch
+
+
+@dataclass
+class TrainingBatch:
+    """One batch of synthetic training examples, all tensors on the same device.
+
+    Coordinates follow :mod:`hkpd.camera_conventions` (OpenCV camera frame, 256-pixel crops).
+
+    Attributes:
+        proxy: ``(B, 18, 256, 256)`` float32: channel 0 the edge image in {0, 1}, channels 1-17
+            the COCO-17 joint heatmaps (zero where a joint was dropped).
+        body_pose: ``(B, 23, 3, 3)`` ground-truth relative rotations of the 23 body joints.
+        global_orient: ``(B, 3, 3)`` body-to-camera rotation.
+        betas: ``(B, 10)`` ground-truth shape coefficients.
+        keypoints2d: ``(B, 17, 2)`` ground-truth COCO keypoints in crop pixels (before 2D noise
+            and swaps: the loss target).
+        visible: ``(B, 17)`` bool, keypoint inside the crop and not hidden by the body or an
+            occluder.
+        joints3d: ``(B, 24, 3)`` ground-truth joints in the camera frame, metres.
+        translation: ``(B, 3)`` camera-frame translation of the body's root, metres.
+        focal_px: ``(B,)`` perspective focal length in pixels.
+    """
+
+    proxy: torch.Tensor
+    body_pose: torch.Tensor
+    global_orient: torch.Tensor
+    betas: torch.Tensor
+    keypoints2d: torch.Tensor
+    visible: torch.Tensor
+    joints3d: torch.Tensor
+    translation: torch.Tensor
+    focal_px: torch.Tensor
+
+    @property
+    def batch_size(self) -> int:
+        return int(self.proxy.shape[0])
+
+    def to(self, device: torch.device | str) -> TrainingBatch:
+        """A copy with every tensor on ``device``."""
+        return TrainingBatch(**{f.name: getattr(self, f.name).to(device) for f in fields(self)})
