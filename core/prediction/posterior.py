@@ -1,0 +1,185 @@
+"""``BodyPosterior``: the predicted distribution over one person's body, ready to sample.
+
+It holds what the network predicted for one image (the hierarchical matrix-Fisher parameters
+of the 23 relative joint rotations, the shape Gaussian, the global rotation and the
+weak-perspective camera) together with the crop that maps the network's 256-pixel view back to
+the photo. Meshes come back in the *camera-aligned body frame*: the pelvis at the origin, axes
+of the OpenCV camera (x right, y down, z away from the viewer), metres.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import torch
+
+from hkpd.body import BodyModel
+from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
+from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
+from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
+from hkpd.uncertainty import vertex_uncertainty
+
+
+class CropToImage(Protocol):
+    """Anything that maps crop pixels back to original-image pixels."""
+
+    def crop_to_image(self, points: torch.Tensor) -> torch.Tensor: ...
+
+
+@dataclass
+class BodyMeshes:
+    """N bodies (the mode, or samples), in the camera-aligned body frame, metres.
+
+    Attributes:
+        vertices: ``(N, V, 3)``.
+        joints: ``(N, 24, 3)``.
+        keypoints3d: ``(N, 17, 3)`` COCO keypoints.
+        keypoints2d: ``(N, 17, 2)`` COCO keypoints reprojected into ORIGINAL image pixels.
+        betas: ``(N, 10)`` shape coefficients.
+        body_pose: ``(N, 23, 3, 3)`` relative joint rotations.
+    """
+
+    vertices: torch.Tensor
+    joints: torch.Tensor
+    keypoints3d: torch.Tensor
+    keypoints2d: torch.Tensor
+    betas: torch.Tensor
+    body_pose: torch.Tensor
+
+
+def joint_index(joint: int | str) -> int:
+    """Index among the 23 body joints of a name (``"left_elbow"``) or an index."""
+    if isinstance(joint, str):
+        if joint not in BODY_JOINT_NAMES:
+            raise ValueError(
+                f"unknown joint {joint!r}; body joints are {', '.join(BODY_JOINT_NAMES)}"
+            )
+        return BODY_JOINT_NAMES.index(joint)
+    if not 0 <= int(joint) < len(BODY_JOINT_NAMES):
+        raise IndexError(f"joint index {joint} is outside 0..{len(BODY_JOINT_NAMES) - 1}")
+    return int(joint)
+
+
+@dataclass(frozen=True)
+class BodyPosterior:
+    """The body distribution predicted for one person.
+
+    Attributes:
+        F: ``(23, 3, 3)`` matrix-Fisher parameters of the relative joint rotations (already
+            including any concentration scaling).
+        shape_mean, shape_std: ``(10,)`` the shape Gaussian.
+        global_orient: ``(3, 3)`` body-to-camera rotation.
+        camera: ``(3,)`` weak-perspective ``[s, tx, ty]`` of the 256-pixel crop.
+        crop: maps crop pixels to original-image pixels.
+        keypoints: ``(17, 2)`` detected COCO keypoints, original-image pixels.
+        confidences: ``(17,)`` their detector confidences.
+        body: the body model used to turn parameters into meshes.
+        concentration_scales: ``(23,)`` the factors applied to the predicted concentrations
+            (all ones for the network's own prediction).
+        shape_std_scale: the factor applied to the predicted shape standard deviations.
+    """
+
+    F: torch.Tensor
+    shape_mean: torch.Tensor
+    shape_std: torch.Tensor
+    global_orient: torch.Tensor
+    camera: torch.Tensor
+    crop: CropToImage
+    keypoints: torch.Tensor
+    confidences: torch.Tensor
+    body: BodyModel
+    concentration_scales: torch.Tensor | None = None
+    shape_std_scale: float = 1.0
+
+    @property
+    def pose_distribution(self) -> KinematicMatrixFisher:
+        """The hierarchical matrix-Fisher distribution, batch shape ``(1,)``."""
+        return KinematicMatrixFisher(self.F[None], BODY_PARENTS)
+
+    @property
+    def shape_distribution(self) -> torch.distributions.Independent:
+        """The shape Gaussian, batch shape ``(1,)``, event shape ``(10,)``."""
+        return body_shape_distribution(self.shape_mean[None], self.shape_std[None])
+
+    def _meshes(self, betas: torch.Tensor, body_pose: torch.Tensor) -> BodyMeshes:
+        count = betas.shape[0]
+        orient = self.global_orient.expand(count, 3, 3)
+        with torch.no_grad():
+            posed = self.body(betas, body_pose, orient)
+        root = posed.joints[:, :1]
+        keypoints3d = posed.keypoints - root
+        ndc = weak_perspective_project(keypoints3d, self.camera.expand(count, 3))
+        keypoints2d = self.crop.crop_to_image(ndc_to_pixels(ndc))
+        return BodyMeshes(
+            vertices=posed.vertices - root,
+            joints=posed.joints - root,
+            keypoints3d=keypoints3d,
+            keypoints2d=torch.as_tensor(keypoints2d, dtype=keypoints3d.dtype),
+            betas=betas,
+            body_pose=body_pose,
+        )
+
+    def mode(self) -> BodyMeshes:
+        """The most likely body: modal rotations and the mean shape (N = 1)."""
+        return self._meshes(self.shape_mean[None], self.pose_distribution.mode)
+
+    def sample(self, n: int, seed: int | None = None) -> BodyMeshes:
+        """``n`` bodies drawn from the posterior with the rejection sampler (N = n).
+
+        Args:
+            n: number of samples (>= 1).
+            seed: makes the draw reproducible; None draws fresh randomness.
+        """
+        if n < 1:
+            raise ValueError(f"sample needs n >= 1, got {n}")
+        generator = torch.Generator(device=self.F.device)
+        if seed is None:
+            generator.seed()
+        else:
+            generator.manual_seed(int(seed))
+        with torch.no_grad():
+            body_pose = self.pose_distribution.sample(n, generator=generator)[:, 0]
+            noise = torch.randn(n, self.shape_mean.shape[0], generator=generator,
+                                device=self.F.device, dtype=self.shape_mean.dtype)  # fmt: skip
+        betas = self.shape_mean + noise * self.shape_std
+        return self._meshes(betas, body_pose)
+
+    def vertex_uncertainty(self, n: int = 100, seed: int | None = 0) -> torch.Tensor:
+        """``(V,)`` mean distance of ``n`` sampled meshes' vertices from their mean, metres."""
+        return vertex_uncertainty(self.sample(n, seed).vertices)
+
+    def with_concentration(
+        self, joint: int | str | Sequence[int | str] | None, factor: float
+    ) -> BodyPosterior:
+        """A posterior whose selected joints' concentrations are scaled by ``factor``.
+
+        Factors multiply: scaling twice by 2 is scaling by 4. ``joint=None`` scales all 23.
+        Principal axes and modes do not change, only how tightly samples gather around them.
+        """
+        if factor <= 0:
+            raise ValueError(f"concentration factor must be positive, got {factor}")
+        if joint is None:
+            selected = list(range(len(BODY_JOINT_NAMES)))
+        elif isinstance(joint, (int, str)):
+            selected = [joint_index(joint)]
+        else:
+            selected = [joint_index(j) for j in joint]
+        scaled = self.pose_distribution.scale_concentration(selected, factor)
+        scales = self._scales().clone()
+        scales[selected] *= factor
+        return replace(self, F=scaled.F[0], concentration_scales=scales)
+
+    def with_shape_std(self, factor: float) -> BodyPosterior:
+        """A posterior whose shape standard deviations are scaled by ``factor`` (> 0)."""
+        if factor <= 0:
+            raise ValueError(f"shape std factor must be positive, got {factor}")
+        return replace(
+            self, shape_std=self.shape_std * factor, shape_std_scale=self.shape_std_scale * factor
+        )
+
+    def _scales(self) -> torch.Tensor:
+        if self.concentration_scales is None:
+            return torch.ones(len(BODY_JOINT_NAMES), dtype=self.F.dtype, device=self.F.device)
+        return self.concentration_scales

@@ -1,0 +1,256 @@
+"""The synthetic data generator: poses and shapes -> posed bodies -> rendered crops ->
+augmentations -> proxy representations with ground truth.
+
+One batch, step by step (settings from the paper's supplement):
+
+1. Relative joint rotations and a world orientation come from a pose source (a mocap pose
+   bank or the procedural prior); shapes are drawn from ``N(0, 1.25²)``.
+2. The body is turned by a random heading about the vertical and seen by an upright camera:
+   ``global_orient = FRONTAL_GLOBAL_ORIENT @ R_y(yaw) @ world_orient``. The pelvis is placed at
+   a camera translation sampled as in the supplement (mean 2.5 m away).
+3. A square box around the projected keypoints (margin ``CROP_MARGIN``, times a random scale in
+   0.8-1.2) becomes the crop. Rather than rendering a large frame and resampling, the crop is
+   rendered directly: the focal length is scaled by ``crop size / box side`` and the box's
+   offset from the optical axis becomes a shear ``x' = x + d z / f'`` of the camera-frame
+   vertices, which moves every projection by exactly ``d`` pixels and leaves depth unchanged.
+4. The mesh is rendered with a random clothing texture and lighting over a background, then
+   the image-space augmentations are applied (body-part erasing, an occluding box, half-image
+   blanking) and keypoint visibility is decided (:mod:`hkpd.synthesis.visibility`).
+5. The input keypoints get the keypoint augmentations (left/right swap, removal, ±8 px noise);
+   the loss targets keep the exact ones. Edges and heatmaps form the proxy.
+
+Every random draw comes from one CPU ``torch.Generator`` seeded per batch, so a batch depends
+only on ``(seed, batch index)``: the same on CPU and CUDA, and a fixed test set is regenerated
+exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import roma
+import torch
+
+from hkpd.body import BodyModel
+from hkpd.camera_conventions import (
+    CROP_SIZE,
+    FRONTAL_GLOBAL_ORIENT,
+    perspective_project,
+)
+from hkpd.poses import PoseSource
+from hkpd.proxy import CROP_MARGIN, build_proxy_batch, square_box_around_keypoints
+from hkpd.rendering import (
+    BackgroundSource,
+    ClothingTextureSampler,
+    MeshRenderer,
+    sample_cameras,
+    sample_lighting,
+)
+from hkpd.synthesis.augmentations import (
+    AugmentationConfig,
+    body_part_occlusion,
+    half_image_occlusion,
+    jitter_joints,
+    occlusion_boxes,
+    remove_joints,
+    swap_left_right,
+)
+from hkpd.synthesis.batch import TrainingBatch
+from hkpd.synthesis.visibility import keypoint_visibility
+
+
+@dataclass(frozen=True)
+class SyntheticDataConfig:
+    """Settings of the synthetic data.
+
+    Attributes:
+        image_size: side of the square crops in pixels (256 for training; smaller for tests).
+        shape_std: standard deviation of the sampled shape coefficients.
+        max_camera_pitch_deg: the camera tilts up or down by at most this much.
+        augmentation: the supplement's augmentations.
+    """
+
+    image_size: int = CROP_SIZE
+    shape_std: float = 1.25
+    max_camera_pitch_deg: float = 10.0
+    augmentation: AugmentationConfig = field(default_factory=AugmentationConfig)
+
+
+@dataclass
+class RenderedBatch:
+    """A training batch together with the pictures it came from (for previews and tests).
+
+    Attributes:
+        batch: the training batch.
+        images: ``(B, S, S, 3)`` uint8 RGB crops after image augmentations.
+        part_map: ``(B, S, S)`` long body part per pixel (-1 background), before erasing.
+        input_keypoints: ``(B, 17, 2)`` the keypoints drawn into the heatmaps (augmented).
+        input_present: ``(B, 17)`` bool, which of them were drawn.
+    """
+
+    batch: TrainingBatch
+    images: np.ndarray
+    part_map: torch.Tensor
+    input_keypoints: torch.Tensor
+    input_present: torch.Tensor
+
+
+def batch_seed(seed: int, index: int) -> int:
+    """The generator seed of batch ``index`` in the stream of ``seed``."""
+    return (seed * 1_000_003 + index * 7_919 + 12_345) % (2**63 - 1)
+
+
+class SyntheticDataGenerator:
+    """Makes batches of synthetic training examples on a chosen device.
+
+    Args:
+        pose_source: where relative joint rotations and world orientations come from.
+        config: image size, shape prior and augmentations.
+        device: where rendering, the body model and the output tensors live.
+        background_dir: optional folder of background images; procedural clutter otherwise.
+        body: the body model (default: the shipped one).
+    """
+
+    def __init__(
+        self,
+        pose_source: PoseSource,
+        config: SyntheticDataConfig | None = None,
+        device: torch.device | str = "cpu",
+        background_dir: Path | str | None = None,
+        body: BodyModel | None = None,
+    ) -> None:
+        self.pose_source = pose_source
+        self.config = config or SyntheticDataConfig()
+        self.device = torch.device(device)
+        self.body = (body or BodyModel()).to(self.device)
+        faces = self.body.faces
+        self.face_parts = self.body.part_labels[faces[:, 0]]
+        self.renderer = MeshRenderer(faces, image_size=self.config.image_size, device=self.device)
+        self.textures = ClothingTextureSampler(self.body.v_template, faces, self.body.part_labels)
+        self.backgrounds = BackgroundSource(Path(background_dir) if background_dir else None)
+
+    def generate(self, count: int, seed: int) -> RenderedBatch:
+        """One batch of ``count`` examples, fully determined by ``seed``."""
+        generator = torch.Generator().manual_seed(seed)
+        config, device, size = self.config, self.device, self.config.image_size
+        augment = config.augmentation
+
+        body_pose, world_orient = self.pose_source.sample(count, generator)
+        body_pose, world_orient = body_pose.to(device).float(), world_orient.to(device).float()
+        yaw = (torch.rand(count, generator=generator) * 2 - 1) * math.pi
+        pitch = (torch.rand(count, generator=generator) * 2 - 1) * math.radians(
+            config.max_camera_pitch_deg
+        )
+        zeros = torch.zeros(count)
+        heading = roma.rotvec_to_rotmat(torch.stack([zeros, yaw, zeros], -1))  # about world up
+        tilt = roma.rotvec_to_rotmat(torch.stack([pitch, zeros, zeros], -1))  # about camera x
+        camera_rotation = (tilt @ FRONTAL_GLOBAL_ORIENT @ heading).to(device)
+        global_orient = camera_rotation @ world_orient
+        betas = (
+            torch.randn(count, self.body.num_betas, generator=generator) * config.shape_std
+        ).to(device)
+        translation, focal_full = sample_cameras(count, generator, device)
+        translation, focal_full = translation.float(), focal_full.float()
+
+        with torch.no_grad():
+            posed = self.body(betas, body_pose, global_orient)
+        origin = posed.joints[:, :1] - translation[:, None]
+        vertices = posed.vertices - origin
+        joints3d = posed.joints - origin
+        keypoints3d = posed.keypoints - origin
+
+        # The crop: a square box around the keypoints projected in the full 256-px frame.
+        full_frame = torch.ones(count, keypoints3d.shape[1], dtype=torch.bool, device=device)
+        projected = perspective_project(keypoints3d, focal_full[:, None], CROP_SIZE)
+        centre, side = square_box_around_keypoints(projected, full_frame, CROP_MARGIN)
+        low, high = augment.bbox_scale_range
+        side = side * (low + (high - low) * torch.rand(count, generator=generator)).to(device)
+        zoom = size / side
+        focal = focal_full * zoom
+        shift = (CROP_SIZE / 2 - centre) * zoom[:, None]  # pixels, in the crop
+
+        def to_crop_camera(points: torch.Tensor) -> torch.Tensor:
+            shear = shift[:, None] * points[..., 2:] / focal[:, None, None]
+            return torch.cat([points[..., :2] + shear, points[..., 2:]], -1)
+
+        keypoints2d = perspective_project(to_crop_camera(keypoints3d), focal[:, None], size)
+
+        lighting = sample_lighting(count, generator, device)
+        colours = self.textures.sample(count, generator, device)
+        rendered = self.renderer.render(to_crop_camera(vertices), focal, colours, lighting)
+        part_map = rendered.part_map(self.face_parts)
+        background = self.backgrounds.sample(count, generator, size, device)
+
+        erased = body_part_occlusion(part_map, augment, generator)
+        box, box_colour = occlusion_boxes(count, size, augment, generator, device)
+        half = half_image_occlusion(count, size, augment, generator, device)
+        image = torch.where((rendered.mask & ~erased)[:, None], rendered.rgb, background)
+        image = torch.where(box[:, None], box_colour[:, :, None, None], image)
+        image = torch.where(half[:, None], torch.zeros((), device=device), image)
+        occluded = erased | box | half
+
+        visible = keypoint_visibility(
+            keypoints2d, keypoints3d[..., 2], rendered.depth, part_map, occluded
+        )
+        input_present = remove_joints(visible, augment, generator)
+        swapped_points = swap_left_right(
+            torch.cat([keypoints2d, input_present[..., None]], -1), augment, generator
+        )
+        input_present = swapped_points[..., 2] > 0.5
+        input_keypoints = jitter_joints(swapped_points[..., :2], size, augment, generator)
+
+        images = (image.clamp(0, 1) * 255 + 0.5).to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()
+        proxy = build_proxy_batch(images, input_keypoints, input_present, device)
+        batch = TrainingBatch(
+            proxy=proxy,
+            body_pose=body_pose,
+            global_orient=global_orient,
+            betas=betas,
+            keypoints2d=keypoints2d,
+            visible=visible,
+            joints3d=joints3d,
+            translation=translation,
+            focal_px=focal,
+        )
+        return RenderedBatch(batch, images, part_map, input_keypoints, input_present)
+
+
+class SyntheticBatches:
+    """An endless, deterministic stream of training batches (an iterable for training loops).
+
+    Batch ``i`` depends only on ``(seed, i)``, so a stream resumes exactly at a step.
+
+    Args:
+        generator: the synthetic data generator.
+        batch_size: examples per batch.
+        seed: the stream's seed.
+        start: the first batch index (for resuming).
+    """
+
+    def __init__(
+        self, generator: SyntheticDataGenerator, batch_size: int, seed: int = 0, start: int = 0
+    ) -> None:
+        self.generator, self.batch_size, self.seed, self.start = generator, batch_size, seed, start
+
+    def __iter__(self):
+        index = self.start
+        while True:
+            yield self.generator.generate(self.batch_size, batch_seed(self.seed, index)).batch
+            index += 1
+
+
+def fixed_test_set(
+    generator: SyntheticDataGenerator, count: int = 1000, seed: int = 2021, batch_size: int = 50
+) -> list[TrainingBatch]:
+    """A fixed synthetic test set: ``count`` examples in batches, identical on every call.
+
+    Use a generator whose pose source is the held-out *test* split of a pose bank.
+    """
+    batches = []
+    for index, start in enumerate(range(0, count, batch_size)):
+        size = min(batch_size, count - start)
+        batches.append(generator.generate(size, batch_seed(seed, index)).batch)
+    return batches

@@ -1,0 +1,112 @@
+"""Checkpoints: save, resume and load trained networks.
+
+A checkpoint is one ``torch.save`` file holding plain data only (loadable with
+``weights_only=True``):
+
+| key | content |
+|---|---|
+| ``format`` | ``"hkpd-checkpoint"`` |
+| ``version`` | format version (1) |
+| ``network_config`` | dict, rebuilds the network with ``DistributionNetwork.from_config`` |
+| ``model`` | the network's ``state_dict`` (float32, or float16 in exported weights) |
+| ``optimizer`` | the optimiser's ``state_dict`` (absent in exported weights) |
+| ``step`` | optimiser steps done |
+| ``train_config`` | the :class:`~hkpd.training.config.TrainConfig` as a dict |
+| ``samples_seen`` | training examples seen |
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import torch
+
+FORMAT = "hkpd-checkpoint"
+VERSION = 1
+
+
+class CheckpointError(ValueError):
+    """A file is not a readable hkpd checkpoint; the message says why and what to do."""
+
+
+def save_checkpoint(
+    path: Path,
+    model: torch.nn.Module,
+    network_config: dict,
+    step: int,
+    train_config: dict,
+    samples_seen: int,
+    optimizer: torch.optim.Optimizer | None = None,
+    half_precision: bool = False,
+) -> Path:
+    """Write a checkpoint atomically (to a temporary name, then renamed).
+
+    Args:
+        half_precision: store float tensors as float16 and no optimiser state (for shipping
+            small weights; not for resuming).
+    """
+    state = model.state_dict()
+    if half_precision:
+        state = {
+            key: value.half() if value.is_floating_point() else value
+            for key, value in state.items()
+        }
+    payload: dict[str, Any] = {
+        "format": FORMAT,
+        "version": VERSION,
+        "network_config": network_config,
+        "model": {key: value.detach().cpu() for key, value in state.items()},
+        "step": int(step),
+        "train_config": train_config,
+        "samples_seen": int(samples_seen),
+    }
+    if optimizer is not None and not half_precision:
+        payload["optimizer"] = optimizer.state_dict()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + ".partial")
+    torch.save(payload, partial)
+    partial.replace(path)
+    return path
+
+
+def read_checkpoint(path: Path | str, map_location: str | torch.device = "cpu") -> dict:
+    """Load and validate a checkpoint file.
+
+    Raises:
+        FileNotFoundError: no such file.
+        CheckpointError: not an hkpd checkpoint, or written by a newer format version.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint {path} does not exist")
+    try:
+        payload = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as error:  # torch raises many types for corrupt files
+        raise CheckpointError(f"{path} is not a readable checkpoint ({error})") from error
+    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
+        raise CheckpointError(f"{path} is not an hkpd checkpoint (no '{FORMAT}' marker)")
+    if int(payload.get("version", 0)) > VERSION:
+        raise CheckpointError(
+            f"{path} has checkpoint format {payload['version']}; this hkpd reads up to "
+            f"{VERSION}. Upgrade hkpd."
+        )
+    return payload
+
+
+def load_network(path: Path | str, device: str | torch.device = "cpu") -> tuple[Any, dict]:
+    """Rebuild the trained network from a checkpoint, in float32 and eval mode.
+
+    Returns:
+        ``(network, checkpoint dict)``.
+    """
+    from hkpd.network import DistributionNetwork
+
+    payload = read_checkpoint(path)
+    network = DistributionNetwork.from_config(payload["network_config"])
+    state = {
+        key: value.float() if value.is_floating_point() else value
+        for key, value in payload["model"].items()
+    }
+    network.load_state_dict(state)
+    return network.to(device).eval(), payload

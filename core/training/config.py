@@ -1,0 +1,126 @@
+"""The training configuration: one readable dataclass, saved with every run and checkpoint.
+
+Every field is also a command-line flag of ``hkpd-train`` (``--batch-size 16``), and
+``--config run.json`` loads a saved configuration first, so a run can be repeated or tweaked.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import types
+import typing
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass
+class TrainConfig:
+    """Everything that defines a training run.
+
+    Attributes:
+        out: run folder (checkpoints, CSV logs, curves, the config itself).
+        poses: pose bank ``.npz`` from ``hkpd-poses build``; None uses the procedural prior.
+        backgrounds: optional folder of background images (procedural clutter otherwise).
+        steps: optimiser steps in total.
+        batch_size: examples per step.
+        image_size: proxy side in pixels (256 as in the paper; smaller for quick tests).
+        pose_head: ``"hierarchical"`` (the paper's f_hier) or ``"independent"`` (f_indep).
+        backbone_width: ResNet-18 width multiplier (1.0 is the paper's; 0.5 for CPU).
+        learning_rate: Adam learning rate.
+        num_samples: K, bodies sampled per example for the 2D samples loss.
+        samples_loss_from: step at which the 2D loss on samples starts (stage 2); -1 never.
+        joints3d_loss_from: step at which the 3D joint loss starts (stage 3); -1 never.
+        device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
+        amp: mixed precision on CUDA (ignored on CPU).
+        seed: seeds the data stream and the network initialisation.
+        log_every: steps between CSV log rows.
+        val_every: steps between validations (0: only at the end).
+        val_size: validation examples (a fixed synthetic set from the pose bank's val split).
+        checkpoint_every: steps between checkpoints (the last one is always written).
+        tensorboard: also write TensorBoard logs (needs the tensorboard package).
+    """
+
+    out: Path = Path("runs/hkpd")
+    poses: Path | None = None
+    backgrounds: Path | None = None
+    steps: int = 20_000
+    batch_size: int = 32
+    image_size: int = 256
+    pose_head: str = "hierarchical"
+    backbone_width: float = 1.0
+    learning_rate: float = 1e-4
+    num_samples: int = 8
+    samples_loss_from: int = 2_000
+    joints3d_loss_from: int = 10_000
+    device: str = "auto"
+    amp: bool = True
+    seed: int = 0
+    log_every: int = 10
+    val_every: int = 1_000
+    val_size: int = 200
+    checkpoint_every: int = 1_000
+    tensorboard: bool = False
+
+    def to_dict(self) -> dict:
+        """Plain JSON-able values (paths as strings)."""
+        return {
+            key: (str(value) if isinstance(value, Path) else value)
+            for key, value in dataclasses.asdict(self).items()
+        }
+
+    @classmethod
+    def from_dict(cls, values: dict) -> TrainConfig:
+        """Inverse of :meth:`to_dict`; unknown keys raise a ValueError naming them."""
+        known = {f.name: f for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - set(known))
+        if unknown:
+            raise ValueError(f"unknown training config keys: {', '.join(unknown)}")
+        hints = typing.get_type_hints(cls)
+        converted = {}
+        for key, value in values.items():
+            wants_path = Path in _members(hints[key])
+            converted[key] = Path(value) if wants_path and value is not None else value
+        return cls(**converted)
+
+    def save(self, path: Path) -> None:
+        path.write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+
+    @classmethod
+    def load(cls, path: Path) -> TrainConfig:
+        if not path.is_file():
+            raise FileNotFoundError(f"training config {path} does not exist")
+        return cls.from_dict(json.loads(path.read_text()))
+
+
+def _members(hint) -> tuple:
+    if isinstance(hint, types.UnionType) or typing.get_origin(hint) is typing.Union:
+        return typing.get_args(hint)
+    return (hint,)
+
+
+def add_config_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add one ``--flag`` per :class:`TrainConfig` field (default: not given)."""
+    hints = typing.get_type_hints(TrainConfig)
+    for field in dataclasses.fields(TrainConfig):
+        flag = "--" + field.name.replace("_", "-")
+        members = [m for m in _members(hints[field.name]) if m is not type(None)]
+        kind = members[0]
+        help_text = f"default: {field.default}"
+        if kind is bool:
+            parser.add_argument(flag, action=argparse.BooleanOptionalAction, help=help_text)
+        else:
+            parser.add_argument(flag, type=kind, help=help_text)
+
+
+def config_from_arguments(arguments: argparse.Namespace) -> TrainConfig:
+    """``--config`` file (if any), then every flag that was given on top."""
+    config_file = getattr(arguments, "config", None)
+    config = TrainConfig.load(config_file) if config_file else TrainConfig()
+    given = {
+        f.name: getattr(arguments, f.name)
+        for f in dataclasses.fields(TrainConfig)
+        if getattr(arguments, f.name, None) is not None
+    }
+    return dataclasses.replace(config, **given)

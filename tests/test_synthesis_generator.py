@@ -1,0 +1,108 @@
+"""The synthetic data generator end to end at a small image size."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from hkpd.camera_conventions import perspective_project
+from hkpd.poses import ProceduralPosePrior
+from hkpd.synthesis.augmentations import AugmentationConfig
+from hkpd.synthesis.generator import (
+    SyntheticBatches,
+    SyntheticDataConfig,
+    SyntheticDataGenerator,
+    fixed_test_set,
+)
+from hkpd.synthesis.preview import preview_grid
+
+SIZE = 64
+
+
+@pytest.fixture(scope="module")
+def generator() -> SyntheticDataGenerator:
+    return SyntheticDataGenerator(ProceduralPosePrior(), SyntheticDataConfig(image_size=SIZE))
+
+
+@pytest.fixture(scope="module")
+def clean_generator(generator) -> SyntheticDataGenerator:
+    clean = SyntheticDataGenerator(
+        ProceduralPosePrior(),
+        SyntheticDataConfig(image_size=SIZE, augmentation=AugmentationConfig.disabled()),
+        body=generator.body,
+    )
+    return clean
+
+
+def test_batch_fields_and_shapes(generator) -> None:
+    rendered = generator.generate(6, seed=1)
+    batch = rendered.batch
+    assert batch.proxy.shape == (6, 18, SIZE, SIZE) and batch.proxy.dtype == torch.float32
+    assert batch.body_pose.shape == (6, 23, 3, 3)
+    assert batch.global_orient.shape == (6, 3, 3)
+    assert batch.betas.shape == (6, 10)
+    assert batch.keypoints2d.shape == (6, 17, 2)
+    assert batch.visible.shape == (6, 17) and batch.visible.dtype == torch.bool
+    assert batch.joints3d.shape == (6, 24, 3)
+    assert rendered.images.shape == (6, SIZE, SIZE, 3) and rendered.images.dtype == np.uint8
+    eye = torch.eye(3).expand(6, 3, 3)
+    torch.testing.assert_close(batch.global_orient @ batch.global_orient.mT, eye, atol=1e-5,
+                               rtol=0)  # fmt: skip
+    assert float(batch.proxy[:, 0].sum()) > 0  # there are edges
+
+
+def test_same_seed_same_batch_other_seed_differs(generator) -> None:
+    first = generator.generate(3, seed=5).batch
+    again = generator.generate(3, seed=5).batch
+    other = generator.generate(3, seed=6).batch
+    torch.testing.assert_close(first.proxy, again.proxy)
+    torch.testing.assert_close(first.keypoints2d, again.keypoints2d)
+    assert not torch.equal(first.proxy, other.proxy)
+
+
+def test_keypoints_are_the_projection_of_the_3d_body(clean_generator) -> None:
+    """Without augmentation the whole body is in frame, its keypoints are where the camera puts
+    its 3D joints after the crop, and the crop box keeps them inside the image."""
+    batch = clean_generator.generate(8, seed=2).batch
+    keypoints = batch.keypoints2d
+    assert bool(((keypoints > -1) & (keypoints < SIZE)).all())
+    body = clean_generator.body
+    posed = body(batch.betas, batch.body_pose, batch.global_orient)
+    keypoints3d = posed.keypoints - posed.joints[:, :1] + batch.translation[:, None]
+    # Depth order is preserved by the crop's shear: projection with the crop focal length
+    # differs from the stored keypoints only by a per-image 2D shift.
+    projected = perspective_project(keypoints3d, batch.focal_px[:, None], SIZE)
+    offset = keypoints - projected
+    torch.testing.assert_close(offset, offset[:, :1].expand_as(offset), atol=1e-3, rtol=0)
+    torch.testing.assert_close(batch.joints3d[:, 0], batch.translation)
+
+
+def test_visible_joints_in_the_heatmaps_without_augmentation(clean_generator) -> None:
+    rendered = clean_generator.generate(8, seed=3)
+    batch = rendered.batch
+    assert bool(torch.equal(rendered.input_present, batch.visible))
+    assert float(batch.visible.float().mean()) > 0.6  # most joints of a clean render are seen
+    peaks = batch.proxy[:, 1:].flatten(2).amax(-1)
+    assert bool((peaks[batch.visible] > 0.5).all())
+    assert bool((peaks[~batch.visible] == 0).all())
+
+
+def test_stream_and_fixed_test_set_are_reproducible(generator) -> None:
+    stream = iter(SyntheticBatches(generator, batch_size=2, seed=9))
+    first, second = next(stream), next(stream)
+    resumed = next(iter(SyntheticBatches(generator, batch_size=2, seed=9, start=1)))
+    torch.testing.assert_close(second.proxy, resumed.proxy)
+    assert not torch.equal(first.proxy, second.proxy)
+    test_a = fixed_test_set(generator, count=5, seed=1, batch_size=2)
+    test_b = fixed_test_set(generator, count=5, seed=1, batch_size=2)
+    assert [b.batch_size for b in test_a] == [2, 2, 1]
+    for a, b in zip(test_a, test_b, strict=True):
+        torch.testing.assert_close(a.proxy, b.proxy)
+
+
+def test_preview_grid_picture(generator) -> None:
+    rendered = generator.generate(5, seed=4)
+    picture = preview_grid(rendered, columns=2)
+    assert picture.dtype == np.uint8
+    assert picture.shape == (3 * (SIZE + 4), 2 * (4 * SIZE + 4), 3)
