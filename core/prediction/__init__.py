@@ -1,2 +1,46 @@
 """From a photo to a body posterior: image loading, 2D keypoint detection, cropping, the
-`Predictor` and the `hkpd-predict` command."""
+`Predictor` and the `hkpd-predict` command.
+
+Implemented so far (the network-dependent `Predictor` and CLI come next):
+
+- :func:`load_image` -> :class:`LoadedImage`: any path/array/PIL image as ``(H, W, 3)`` uint8
+  RGB (EXIF orientation, grayscale, alpha on white, 16-bit, downscale of huge photos), with the
+  map back to original-photo pixels; bad input raises :class:`ImageInputError`.
+- :class:`KeypointDetector` -> :class:`KeypointDetection`: COCO-17 keypoints of one person from
+  BlazePose (optionally inside a ``bbox``); :class:`NoPersonFoundError` when there is none.
+- :class:`CropTransform`: the square 256-pixel crop around a person and the exact pixel maps
+  between crop and photo.
+- :func:`apply_occluders`: black boxes painted over a photo before detection.
+"""
+
+from hkpd.prediction.crop import CROP_MARGIN, KEYPOINT_CONFIDENCE_THRESHOLD, CropTransform
+from hkpd.prediction.image_input import (
+    MAX_IMAGE_SIDE,
+    MIN_IMAGE_SIDE,
+    ImageInputError,
+    LoadedImage,
+    load_image,
+)
+from hkpd.prediction.keypoint_detector import (
+    COCO_FROM_BLAZEPOSE,
+    KeypointDetection,
+    KeypointDetector,
+    NoPersonFoundError,
+)
+from hkpd.prediction.occluders import apply_occluders
+
+__all__ = [
+    "COCO_FROM_BLAZEPOSE",
+    "CROP_MARGIN",
+    "KEYPOINT_CONFIDENCE_THRESHOLD",
+    "MAX_IMAGE_SIDE",
+    "MIN_IMAGE_SIDE",
+    "CropTransform",
+    "ImageInputError",
+    "KeypointDetection",
+    "KeypointDetector",
+    "LoadedImage",
+    "NoPersonFoundError",
+    "apply_occluders",
+    "load_image",
+]

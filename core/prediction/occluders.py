@@ -1,0 +1,79 @@
+"""Artificial occluders: black boxes painted over a photo before detection and edge extraction.
+
+The paper shows how uncertainty grows when parts of the body are hidden; painting boxes over a
+photo reproduces that. Box coordinates are ``(x0, y0, x1, y1)`` in original-photo pixels and
+follow slicing: pixel column ``i`` spans ``[i, i + 1)`` in box coordinates, so an integer box
+blacks out exactly ``image[y0:y1, x0:x1]``; a fractional box blacks out every pixel it touches.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TypeVar
+
+import numpy as np
+
+from hkpd.prediction.image_input import LoadedImage
+
+Image = TypeVar("Image", np.ndarray, LoadedImage)
+
+
+def apply_occluders(image: Image, boxes: Sequence[Sequence[float]] | np.ndarray) -> Image:
+    """A copy of ``image`` with each box painted black.
+
+    Args:
+        image: ``(H, W, C)`` or ``(H, W)`` pixel array (boxes in its own pixels), or a
+            :class:`LoadedImage` (boxes in ORIGINAL-photo pixels, mapped onto its possibly
+            downscaled working pixels).
+        boxes: ``(N, 4)`` ``(x0, y0, x1, y1)``; parts outside the image are clipped away.
+            ``N = 0`` returns an unchanged copy.
+
+    Returns:
+        Same kind as ``image`` (a new array / LoadedImage; the input is not modified).
+
+    Raises:
+        ValueError: boxes not ``(N, 4)`` finite numbers, ``x1 <= x0`` or ``y1 <= y0``, or a box
+            entirely outside the image (probably given in the wrong image's pixels).
+    """
+    if isinstance(image, LoadedImage):
+        width, height = image.original_size
+        scale = image.scale
+        pixels = image.pixels
+    else:
+        pixels = np.asarray(image)
+        if pixels.ndim not in (2, 3):
+            raise ValueError(f"expected an (H, W[, C]) image, got shape {pixels.shape}")
+        height, width = pixels.shape[:2]
+        scale = (1.0, 1.0)
+    array = np.asarray(boxes, dtype=np.float64)
+    if array.size == 0:
+        array = array.reshape(0, 4)
+    if array.ndim == 1 and array.shape == (4,):
+        raise ValueError("boxes must be a list of (x0, y0, x1, y1) boxes; wrap a single box: [box]")
+    if array.ndim != 2 or array.shape[1] != 4:
+        raise ValueError(f"boxes must have shape (N, 4) as (x0, y0, x1, y1), got {array.shape}")
+    if not np.isfinite(array).all():
+        raise ValueError("occluder boxes must be finite numbers")
+    out = pixels.copy()
+    for x0, y0, x1, y1 in array:
+        if x1 <= x0 or y1 <= y0:
+            raise ValueError(f"occluder box {(x0, y0, x1, y1)} needs x1 > x0 and y1 > y0")
+        if x1 <= 0 or y1 <= 0 or x0 >= width or y0 >= height:
+            raise ValueError(
+                f"occluder box {(x0, y0, x1, y1)} lies entirely outside the {width}x{height} "
+                "image; give boxes in pixels of the original photo"
+            )
+        # Pixel-edge coordinates scale directly with the image size.
+        cols = _touched(x0 * scale[0], x1 * scale[0], out.shape[1])
+        rows = _touched(y0 * scale[1], y1 * scale[1], out.shape[0])
+        out[rows, cols] = 0
+    if isinstance(image, LoadedImage):
+        return image.with_pixels(out)
+    return out
+
+
+def _touched(low: float, high: float, length: int) -> slice:
+    """Slice of the pixels ``i`` (spanning ``[i, i + 1)``) that ``[low, high)`` overlaps."""
+    start = int(np.clip(np.floor(low), 0, length))
+    stop = int(np.clip(np.ceil(high), 0, length))
+    return slice(start, stop)
