@@ -1,0 +1,242 @@
+"""A small BVH (Biovision Hierarchy) reader: skeleton hierarchy and motion channels.
+
+Only the parts of the format that motion-capture exports use are supported: one ``ROOT``, nested
+``JOINT`` blocks, ``End Site`` blocks, ``OFFSET`` and ``CHANNELS`` lines (any order of the six
+channel names, any subset per joint), and the ``MOTION`` section. Line endings may be LF or CRLF.
+
+End sites become joints of the skeleton too (named ``"<parent>_end"``, no channels), so that the
+tip of every chain has a position; :attr:`BvhSkeleton.is_end_site` tells them apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
+POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
+_KNOWN_CHANNELS = ROTATION_CHANNELS + POSITION_CHANNELS
+
+
+class BvhParseError(ValueError):
+    """Raised when a BVH file cannot be understood; the message names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class BvhSkeleton:
+    """The hierarchy of a BVH file, joints in file order (parents before children).
+
+    Attributes:
+        names: joint names; end sites are named ``"<parent>_end"``.
+        parents: parent index of each joint, -1 for the root.
+        offsets: ``(J, 3)`` float64 offset of each joint from its parent, in the parent's frame,
+            in the file's length unit (the root's offset is usually zero).
+        channels: the channel names of each joint in file order (empty for end sites).
+        is_end_site: ``(J,)`` bool.
+    """
+
+    names: tuple[str, ...]
+    parents: tuple[int, ...]
+    offsets: np.ndarray
+    channels: tuple[tuple[str, ...], ...]
+    is_end_site: np.ndarray
+
+    @property
+    def num_joints(self) -> int:
+        """Number of joints, end sites included."""
+        return len(self.names)
+
+    @property
+    def num_channels(self) -> int:
+        """Number of numbers per motion frame."""
+        return sum(len(c) for c in self.channels)
+
+    def index(self, name: str) -> int:
+        """Index of the joint called ``name``; raises KeyError listing the names if absent."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(f"no joint {name!r} in this skeleton; joints: {self.names}") from None
+
+
+@dataclass(frozen=True)
+class BvhMotion:
+    """A parsed BVH file.
+
+    Attributes:
+        skeleton: the hierarchy.
+        frames: ``(F, C)`` float64 channel values, angles in degrees, C = skeleton.num_channels.
+        frame_time: seconds per frame as written in the file.
+        name: the clip name (file stem) or ``""``.
+    """
+
+    skeleton: BvhSkeleton
+    frames: np.ndarray
+    frame_time: float
+    name: str = ""
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.frames.shape[0])
+
+
+def load_bvh(path: str | Path) -> BvhMotion:
+    """Read a BVH file from disk (see :func:`parse_bvh`); the clip name is the file stem."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as error:
+        raise BvhParseError(f"{path}: cannot read file ({error})") from error
+    try:
+        return parse_bvh(text, name=path.stem)
+    except BvhParseError as error:
+        raise BvhParseError(f"{path}: {error}") from None
+
+
+def parse_bvh(text: str, name: str = "") -> BvhMotion:
+    """Parse the text of a BVH file.
+
+    Args:
+        text: the whole file (LF or CRLF line endings).
+        name: clip name stored in the result.
+
+    Returns:
+        The skeleton and its motion frames.
+
+    Raises:
+        BvhParseError: on anything malformed (missing sections, bad numbers, wrong count of
+            values per frame, unknown channel names).
+    """
+    text = text.replace("\r\n", "\n").replace("\r", "\n")
+    head, separator, motion_text = text.partition("MOTION")
+    if not separator:
+        raise BvhParseError("no MOTION section")
+    skeleton = _parse_hierarchy(head.split())
+    frames, frame_time = _parse_motion(motion_text, skeleton.num_channels)
+    return BvhMotion(skeleton=skeleton, frames=frames, frame_time=frame_time, name=name)
+
+
+def _parse_hierarchy(tokens: list[str]) -> BvhSkeleton:
+    if not tokens or tokens[0] != "HIERARCHY":
+        raise BvhParseError("file does not start with HIERARCHY")
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[list[float]] = []
+    channels: list[tuple[str, ...]] = []
+    end_site: list[bool] = []
+    stack: list[int] = []  # joints whose '{' is open
+    pending: int | None = None  # joint declared, waiting for its '{'
+    position = 1
+
+    def take() -> str:
+        nonlocal position
+        if position >= len(tokens):
+            raise BvhParseError("hierarchy ends unexpectedly")
+        token = tokens[position]
+        position += 1
+        return token
+
+    while position < len(tokens):
+        token = take()
+        if token in ("ROOT", "JOINT"):
+            if token == "ROOT" and (names or stack):
+                raise BvhParseError("only one ROOT is supported")
+            if token == "JOINT" and not stack:
+                raise BvhParseError("JOINT outside of the ROOT block")
+            joint_name = take()
+            parents.append(stack[-1] if stack else -1)
+            names.append(joint_name)
+            offsets.append([0.0, 0.0, 0.0])
+            channels.append(())
+            end_site.append(False)
+            pending = len(names) - 1
+        elif token == "End":
+            if take() != "Site" or not stack:
+                raise BvhParseError("malformed End Site")
+            parent = stack[-1]
+            parents.append(parent)
+            names.append(f"{names[parent]}_end")
+            offsets.append([0.0, 0.0, 0.0])
+            channels.append(())
+            end_site.append(True)
+            pending = len(names) - 1
+        elif token == "{":
+            if pending is None:
+                raise BvhParseError("'{' without a joint")
+            stack.append(pending)
+            pending = None
+        elif token == "}":
+            if not stack:
+                raise BvhParseError("unbalanced '}'")
+            stack.pop()
+        elif token == "OFFSET":
+            if not stack:
+                raise BvhParseError("OFFSET outside a joint")
+            try:
+                offsets[stack[-1]] = [float(take()) for _ in range(3)]
+            except ValueError as error:
+                raise BvhParseError(f"bad OFFSET of {names[stack[-1]]!r}: {error}") from None
+        elif token == "CHANNELS":
+            if not stack or end_site[stack[-1]]:
+                raise BvhParseError("CHANNELS outside a joint")
+            try:
+                count = int(take())
+            except ValueError:
+                raise BvhParseError(f"bad channel count for {names[stack[-1]]!r}") from None
+            joint_channels = tuple(take() for _ in range(count))
+            unknown = [c for c in joint_channels if c not in _KNOWN_CHANNELS]
+            if unknown:
+                raise BvhParseError(f"unknown channel(s) {unknown} in joint {names[stack[-1]]!r}")
+            channels[stack[-1]] = joint_channels
+        else:
+            raise BvhParseError(f"unexpected token {token!r} in HIERARCHY")
+    if stack or pending is not None:
+        raise BvhParseError("hierarchy has unclosed '{'")
+    if not names:
+        raise BvhParseError("hierarchy has no joints")
+    return BvhSkeleton(
+        names=tuple(names),
+        parents=tuple(parents),
+        offsets=np.asarray(offsets, dtype=np.float64),
+        channels=tuple(channels),
+        is_end_site=np.asarray(end_site, dtype=bool),
+    )
+
+
+def _parse_motion(text: str, num_channels: int) -> tuple[np.ndarray, float]:
+    lines = text.split("\n")
+    header: dict[str, str] = {}
+    body_start = None
+    for line_number, line in enumerate(lines):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        key, colon, value = stripped.partition(":")
+        if colon and key.strip() in ("Frames", "Frame Time"):
+            header[key.strip()] = value.strip()
+            if len(header) == 2:
+                body_start = line_number + 1
+                break
+        else:
+            raise BvhParseError(f"expected 'Frames:' and 'Frame Time:', found {stripped[:40]!r}")
+    if body_start is None:
+        raise BvhParseError("MOTION section lacks 'Frames:' or 'Frame Time:'")
+    try:
+        num_frames = int(header["Frames"])
+        frame_time = float(header["Frame Time"])
+    except ValueError as error:
+        raise BvhParseError(f"bad MOTION header: {error}") from None
+    try:
+        values = np.array(" ".join(lines[body_start:]).split(), dtype=np.float64)
+    except ValueError as error:
+        raise BvhParseError(f"non-numeric motion data: {error}") from None
+    if num_channels == 0 or values.size != num_frames * num_channels:
+        raise BvhParseError(
+            f"motion has {values.size} numbers but {num_frames} frames x {num_channels} "
+            f"channels = {num_frames * num_channels} were declared"
+        )
+    if num_frames == 0:
+        raise BvhParseError("motion has no frames")
+    return values.reshape(num_frames, num_channels), frame_time
