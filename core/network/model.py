@@ -1,0 +1,91 @@
+"""``DistributionNetwork``: proxy representation in, pose and shape distributions out."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+from torch import nn
+
+from hkpd.kinematic_tree import BODY_PARENTS
+from hkpd.network.backbone import ResNetBackbone
+from hkpd.network.config import NetworkConfig
+from hkpd.network.hierarchical_head import HierarchicalHead
+from hkpd.network.independent_head import IndependentHead
+from hkpd.network.output import NetworkOutput
+
+
+class DistributionNetwork(nn.Module):
+    """ResNet backbone plus an independent or hierarchical distribution head.
+
+    Args:
+        config: the architecture; None = :class:`NetworkConfig` defaults (ResNet-18,
+            hierarchical head, 256-pixel input).
+
+    Attributes:
+        config: the :class:`NetworkConfig` (store ``config.to_dict()`` in checkpoints).
+        backbone: :class:`hkpd.network.backbone.ResNetBackbone`.
+        head: :class:`IndependentHead` or :class:`HierarchicalHead`.
+    """
+
+    def __init__(self, config: NetworkConfig | None = None) -> None:
+        super().__init__()
+        self.config = NetworkConfig() if config is None else config
+        c = self.config
+        self.backbone = ResNetBackbone(c.input_channels, c.backbone_base_width, c.backbone_blocks)
+        initial = {
+            "initial_pose_concentration": c.initial_pose_concentration,
+            "initial_shape_std": c.initial_shape_std,
+            "initial_camera_scale": c.initial_camera_scale,
+        }
+        self.head: nn.Module
+        if c.pose_head == "independent":
+            self.head = IndependentHead(
+                self.backbone.feature_dim, c.head_hidden, c.num_betas, len(BODY_PARENTS), **initial
+            )
+        else:
+            self.head = HierarchicalHead(
+                self.backbone.feature_dim,
+                c.head_hidden,
+                c.joint_hidden,
+                c.num_betas,
+                BODY_PARENTS,
+                **initial,
+            )
+
+    @classmethod
+    def from_config(cls, config: NetworkConfig | dict[str, Any]) -> DistributionNetwork:
+        """A freshly initialised network from a config or its ``to_dict()`` form."""
+        if isinstance(config, dict):
+            config = NetworkConfig.from_dict(config)
+        return cls(config)
+
+    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+        """Predict distributions for a batch of proxy representations.
+
+        Args:
+            proxy: ``(B, input_channels, image_size, image_size)`` float (see
+                :mod:`hkpd.proxy.representation`).
+
+        Returns:
+            :class:`NetworkOutput` with batch size B.
+
+        Raises:
+            ValueError: if the input's shape does not match the config.
+        """
+        self._check_input(proxy)
+        return self.head(self.backbone(proxy))
+
+    def _check_input(self, proxy: torch.Tensor) -> None:
+        c = self.config
+        expected = (c.input_channels, c.image_size, c.image_size)
+        if not isinstance(proxy, torch.Tensor) or not proxy.is_floating_point():
+            raise TypeError("proxy must be a floating-point torch.Tensor of shape (B, C, H, W)")
+        if proxy.dim() != 4 or tuple(proxy.shape[1:]) != expected:
+            raise ValueError(
+                f"proxy must have shape (B, {', '.join(map(str, expected))}) for this network "
+                f"(config.input_channels={c.input_channels}, config.image_size={c.image_size}), "
+                f"got {tuple(proxy.shape)}"
+            )
+        if proxy.shape[0] < 1:
+            raise ValueError("proxy batch is empty")

@@ -1,0 +1,80 @@
+"""Turning raw fully connected outputs into valid distribution and camera parameters.
+
+Every head ends in a linear layer whose raw outputs are decoded here:
+
+- shape: ``mean`` as is, ``std = softplus(raw) + MIN_SHAPE_STD`` (positive);
+- global rotation: a 6D vector (two 3-vectors, Zhou et al. 2019) orthonormalised by Gram-Schmidt
+  into a rotation matrix;
+- camera ``[s, tx, ty]``: ``s = softplus(raw_s)`` (positive), ``t`` as is;
+- pose: ``F = raw + c · I`` per joint, with ``c`` the initial concentration.
+
+The ``*_bias`` helpers give the final layers' initial biases so that an untrained network predicts
+a sensible starting point: an upright body facing the camera (``FRONTAL_GLOBAL_ORIENT``), a
+weak-perspective scale that makes a 1.7 m body span most of the crop, and a broad shape
+distribution.
+"""
+
+from __future__ import annotations
+
+import math
+
+import roma
+import torch
+from torch.nn import functional
+
+from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT
+
+MIN_SHAPE_STD = 1e-3
+"""Lower bound of the predicted shape standard deviations (keeps the NLL finite)."""
+
+ROTATION_6D = 6
+CAMERA_PARAMETERS = 3
+
+
+def global_size(num_betas: int) -> int:
+    """Raw outputs for shape mean and std, 6D global rotation and camera: ``2K + 9``."""
+    return 2 * num_betas + ROTATION_6D + CAMERA_PARAMETERS
+
+
+def inverse_softplus(value: float) -> float:
+    """The ``x`` with ``softplus(x) = value`` (value > 0)."""
+    return value + math.log(-math.expm1(-value))
+
+
+def global_bias(num_betas: int, shape_std: float, camera_scale: float) -> torch.Tensor:
+    """``(2K + 9,)`` initial bias of the global outputs (see the module docstring)."""
+    bias = torch.zeros(global_size(num_betas))
+    bias[num_betas : 2 * num_betas] = inverse_softplus(shape_std - MIN_SHAPE_STD)
+    frontal_columns = FRONTAL_GLOBAL_ORIENT[:, :2].T.reshape(-1)  # first two columns
+    bias[2 * num_betas : 2 * num_betas + ROTATION_6D] = frontal_columns
+    bias[2 * num_betas + ROTATION_6D] = inverse_softplus(camera_scale)
+    return bias
+
+
+def rotation_from_6d(raw: torch.Tensor) -> torch.Tensor:
+    """``(..., 6)`` two stacked 3-vectors (first and second column) to ``(..., 3, 3)`` rotations."""
+    columns = raw.unflatten(-1, (2, 3)).transpose(-1, -2)  # (..., 3, 2)
+    return roma.special_gramschmidt(columns, epsilon=1e-6)
+
+
+def decode_globals(
+    raw: torch.Tensor, num_betas: int
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Split and decode ``(B, 2K + 9)`` raw global outputs.
+
+    Returns:
+        ``shape_mean (B, K)``, ``shape_std (B, K)`` (> 0), ``global_orient (B, 3, 3)``,
+        ``camera (B, 3)`` as ``[s > 0, tx, ty]``.
+    """
+    mean = raw[:, :num_betas]
+    std = functional.softplus(raw[:, num_betas : 2 * num_betas]) + MIN_SHAPE_STD
+    orient = rotation_from_6d(raw[:, 2 * num_betas : 2 * num_betas + ROTATION_6D])
+    cam_raw = raw[:, 2 * num_betas + ROTATION_6D :]
+    camera = torch.cat((functional.softplus(cam_raw[:, :1]), cam_raw[:, 1:]), dim=1)
+    return mean, std, orient, camera
+
+
+def decode_pose(raw: torch.Tensor, concentration: float) -> torch.Tensor:
+    """``(..., 9)`` raw outputs to ``(..., 3, 3)`` matrix-Fisher parameters ``raw + c · I``."""
+    eye = torch.eye(3, dtype=raw.dtype, device=raw.device)
+    return raw.unflatten(-1, (3, 3)) + concentration * eye

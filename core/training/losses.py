@@ -1,0 +1,225 @@
+"""The training losses of the paper's Section 3.4, as pure functions.
+
+Conventions (see :mod:`hkpd.camera_conventions`):
+
+- Bodies are posed with the predicted (or sampled) shape, relative joint rotations and global
+  rotation, *without* translation, and made **pelvis-relative** by subtracting the posed pelvis
+  joint (SMPL joint 0). The weak-perspective camera ``[s, tx, ty]`` acts on these points:
+  ``ndc = s * (X_xy + t)``.
+- 2D targets are the batch's ``keypoints2d`` (crop pixels) converted to NDC with
+  :func:`hkpd.camera_conventions.pixels_to_ndc`; only ``visible`` keypoints count.
+- 3D targets are the batch's camera-frame ``joints3d``, made pelvis-relative the same way.
+
+Reductions: every term is a mean over the batch (and over samples). The NLLs sum over joints /
+coefficients; the 2D terms average the squared Euclidean NDC error over visible keypoints; the
+3D term averages the squared Euclidean error (m²) over the 24 joints.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from hkpd.body.body_model import BodyModel
+from hkpd.camera_conventions import CROP_SIZE, pixels_to_ndc, weak_perspective_project
+from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
+from hkpd.kinematic_tree import BODY_PARENTS
+from hkpd.network.output import NetworkOutput
+from hkpd.synthesis.batch import TrainingBatch
+from hkpd.training.schedule import LossWeights
+
+PELVIS = 0
+"""Index of the root joint among the body model's 24 joints."""
+
+
+def shape_nll(mean: torch.Tensor, std: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
+    """Gaussian shape NLL (paper Eq. 7), summed over coefficients, mean over the batch.
+
+    Args:
+        mean, std: ``(B, K)`` predicted shape distribution.
+        betas: ``(B, K)`` ground-truth coefficients.
+
+    Returns:
+        Scalar.
+    """
+    return -body_shape_distribution(mean, std).log_prob(betas).mean()
+
+
+def pose_nll(F: torch.Tensor, body_pose: torch.Tensor) -> torch.Tensor:
+    """Matrix-Fisher NLL of the relative joint rotations (paper Eq. 8).
+
+    ``log c(F_i) - tr(F_i^T R_i)`` summed over the 23 joints, mean over the batch; the normaliser
+    is exact and differentiable.
+
+    Args:
+        F: ``(B, 23, 3, 3)`` predicted parameters.
+        body_pose: ``(B, 23, 3, 3)`` ground-truth relative rotations.
+
+    Returns:
+        Scalar.
+    """
+    return -KinematicMatrixFisher(F, BODY_PARENTS).log_prob(body_pose).mean()
+
+
+def global_rotation_loss(predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """``||R_target - R_pred||_F^2``, mean over the batch (``(B, 3, 3)`` each); scalar."""
+    return (predicted - target).square().sum(dim=(-1, -2)).mean()
+
+
+def keypoint_reprojection_loss(
+    predicted: torch.Tensor, target: torch.Tensor, visible: torch.Tensor
+) -> torch.Tensor:
+    """Squared Euclidean 2D error over visible keypoints (paper Eq. 10, averaged).
+
+    Args:
+        predicted: ``(B, L, 2)`` or ``(B, S, L, 2)`` (S samples per example) predicted
+            keypoints, NDC.
+        target: ``(B, L, 2)`` target keypoints, NDC.
+        visible: ``(B, L)`` bool (or 0/1) visibility of the targets.
+
+    Returns:
+        Scalar: the sum of squared errors over visible keypoints (and samples) divided by
+        their number; 0 (still connected to the graph) when nothing is visible.
+    """
+    if predicted.dim() == 3:
+        predicted = predicted.unsqueeze(1)
+    if predicted.shape[0] != target.shape[0] or predicted.shape[2:] != target.shape[1:]:
+        raise ValueError(
+            f"predicted keypoints {tuple(predicted.shape)} do not match targets "
+            f"{tuple(target.shape)} (expected (B, L, 2) or (B, S, L, 2))"
+        )
+    if visible.shape != target.shape[:2]:
+        raise ValueError(f"visible must be {tuple(target.shape[:2])}, got {tuple(visible.shape)}")
+    mask = visible.to(predicted.dtype).unsqueeze(1)  # (B, 1, L)
+    squared = (predicted - target.unsqueeze(1)).square().sum(-1)  # (B, S, L)
+    count = mask.sum() * predicted.shape[1]
+    return (squared * mask).sum() / count.clamp_min(1.0)
+
+
+def joints3d_loss(predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Mean squared Euclidean error (m²) of pelvis-aligned 3D joints.
+
+    Args:
+        predicted, target: ``(B, J, 3)`` joints in the same frame (metres); each is made
+            relative to its own joint :data:`PELVIS` first, so translations do not matter.
+
+    Returns:
+        Scalar.
+    """
+    predicted = predicted - predicted[:, PELVIS : PELVIS + 1]
+    target = target - target[:, PELVIS : PELVIS + 1]
+    return (predicted - target).square().sum(-1).mean()
+
+
+def pelvis_relative_body(
+    body: BodyModel, betas: torch.Tensor, body_pose: torch.Tensor, global_orient: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Pose bodies and return their COCO keypoints and joints relative to the posed pelvis.
+
+    Uses the body model's full forward pass (vertices included); see ``docs/network.md`` for
+    the keypoints-only path requested from :class:`BodyModel`.
+
+    Args:
+        body: the body model (keypoint regressor required).
+        betas: ``(N, K)``; body_pose ``(N, 23, 3, 3)``; global_orient ``(N, 3, 3)``.
+
+    Returns:
+        ``keypoints (N, 17, 3)`` and ``joints (N, 24, 3)``, metres, camera-frame axes when
+        ``global_orient`` is body-to-camera.
+    """
+    posed = body(betas, body_pose, global_orient)
+    if posed.keypoints is None:
+        raise ValueError(
+            "the body model has no keypoint regressor (an SMPL file); the 2D losses need COCO "
+            "keypoints: use the shipped hkpd body model"
+        )
+    pelvis = posed.joints[:, PELVIS : PELVIS + 1]
+    return posed.keypoints - pelvis, posed.joints - pelvis
+
+
+def compute_losses(
+    output: NetworkOutput,
+    batch: TrainingBatch,
+    body: BodyModel,
+    weights: LossWeights,
+    num_samples: int = 8,
+    crop_size: int = CROP_SIZE,
+    generator: torch.Generator | None = None,
+) -> dict[str, torch.Tensor]:
+    """Every loss term with a non-zero weight, and their weighted sum.
+
+    Args:
+        output: the network's prediction for ``batch``.
+        batch: the targets (``body_pose``, ``global_orient``, ``betas``, ``keypoints2d``,
+            ``visible``, ``joints3d`` are used).
+        body: body model on the same device and dtype as the prediction.
+        weights: the active :class:`LossWeights` (e.g. ``schedule.weights_at(step)``).
+        num_samples: K, bodies sampled per example for the 2D samples loss.
+        crop_size: the pixel size that ``batch.keypoints2d`` refers to.
+        generator: optional random generator for the samples.
+
+    Returns:
+        ``{term: scalar}`` for each active term of :data:`hkpd.training.schedule.LOSS_TERMS`
+        (unweighted) plus ``"total"`` (weighted sum), all connected to the graph.
+    """
+    if num_samples < 1 and weights.joints2d_samples > 0:
+        raise ValueError(f"num_samples must be >= 1 for the samples loss, got {num_samples}")
+    if output.batch_size != batch.batch_size:
+        raise ValueError(
+            f"prediction has batch size {output.batch_size}, targets {batch.batch_size}"
+        )
+    terms: dict[str, torch.Tensor] = {}
+    if weights.shape_nll > 0:
+        terms["shape_nll"] = shape_nll(output.shape_mean, output.shape_std, batch.betas)
+    if weights.pose_nll > 0:
+        terms["pose_nll"] = pose_nll(output.F, batch.body_pose)
+    if weights.global_rotation > 0:
+        terms["global_rotation"] = global_rotation_loss(output.global_orient, batch.global_orient)
+
+    pose = output.pose_distribution()
+    target_ndc = pixels_to_ndc(batch.keypoints2d.to(output.F.dtype), crop_size)
+    if weights.joints2d_mode > 0 or weights.joints3d_mode > 0:
+        keypoints, joints = pelvis_relative_body(
+            body, output.shape_mean, pose.mode, output.global_orient
+        )
+        if weights.joints2d_mode > 0:
+            projected = weak_perspective_project(keypoints, output.camera)
+            terms["joints2d_mode"] = keypoint_reprojection_loss(
+                projected, target_ndc, batch.visible
+            )
+        if weights.joints3d_mode > 0:
+            terms["joints3d_mode"] = joints3d_loss(joints, batch.joints3d.to(joints.dtype))
+    if weights.joints2d_samples > 0:
+        terms["joints2d_samples"] = _samples_reprojection_loss(
+            output, pose, body, target_ndc, batch.visible, num_samples, generator
+        )
+    total = sum(getattr(weights, name) * value for name, value in terms.items())
+    terms["total"] = total if isinstance(total, torch.Tensor) else output.F.sum() * 0.0
+    return terms
+
+
+def _samples_reprojection_loss(
+    output: NetworkOutput,
+    pose: KinematicMatrixFisher,
+    body: BodyModel,
+    target_ndc: torch.Tensor,
+    visible: torch.Tensor,
+    num_samples: int,
+    generator: torch.Generator | None,
+) -> torch.Tensor:
+    """2D loss of ``num_samples`` reparameterised pose and shape samples per example."""
+    batch = output.batch_size
+    poses = pose.rsample(num_samples, generator=generator)  # (S, B, 23, 3, 3)
+    noise = torch.randn(
+        (num_samples, *output.shape_mean.shape),
+        generator=generator,
+        dtype=output.shape_mean.dtype,
+        device=output.shape_mean.device,
+    )
+    betas = output.shape_mean + output.shape_std * noise  # reparameterised, (S, B, K)
+    orient = output.global_orient.expand(num_samples, batch, 3, 3)
+    keypoints, _ = pelvis_relative_body(
+        body, betas.flatten(0, 1), poses.flatten(0, 1), orient.flatten(0, 1)
+    )
+    keypoints = keypoints.unflatten(0, (num_samples, batch)).transpose(0, 1)  # (B, S, 17, 3)
+    projected = weak_perspective_project(keypoints, output.camera)
+    return keypoint_reprojection_loss(projected, target_ndc, visible)
