@@ -13,7 +13,7 @@ Implemented so far (the network-dependent `Predictor` and CLI come next):
 - :func:`apply_occluders`: black boxes painted over a photo before detection.
 """
 
-from hkpd.prediction.crop import CROP_MARGIN, KEYPOINT_CONFIDENCE_THRESHOLD, CropTransform
+from hkpd.prediction.crop import BOX_CONFIDENCE_THRESHOLD, CropTransform
 from hkpd.prediction.image_input import (
     MAX_IMAGE_SIDE,
     MIN_IMAGE_SIDE,
@@ -30,9 +30,8 @@ from hkpd.prediction.keypoint_detector import (
 from hkpd.prediction.occluders import apply_occluders
 
 __all__ = [
+    "BOX_CONFIDENCE_THRESHOLD",
     "COCO_FROM_BLAZEPOSE",
-    "CROP_MARGIN",
-    "KEYPOINT_CONFIDENCE_THRESHOLD",
     "MAX_IMAGE_SIDE",
     "MIN_IMAGE_SIDE",
     "CropTransform",

@@ -10,11 +10,15 @@ pixel centres at integer coordinates (:mod:`hkpd.camera_conventions`), the box's
 
 so crop NDC (``hkpd.camera_conventions.pixels_to_ndc``) is ``(image - centre) * 2 / side``.
 
-Box placement (:meth:`CropTransform.from_keypoints`) follows the synthetic training data: a
-square centred on the bounding box of the confident keypoints, of side :data:`CROP_MARGIN` times
-its longer extent (STRAPS-style 1.2). COCO keypoints end at the eyes/ears and ankles; the 10 %
-extra on each side of the extent covers the top of the head and the feet of a standing person
-(checked on the shipped body model in the tests).
+Box placement (:meth:`CropTransform.from_keypoints`) is the synthetic training data's rule,
+:func:`hkpd.proxy.square_box_around_keypoints`: a square centred on the bounding box of the
+keypoints, of side ``hkpd.proxy.CROP_MARGIN`` (1.2, STRAPS-style) times its longer extent.
+Training boxes surround all 17 keypoints, occluded ones included (then scale by a random 0.8-1.2),
+so by default every keypoint the detector returns places the box, whatever its confidence
+(BlazePose's confidence is a visibility, not a localisation quality); points outside the photo
+are pulled onto its border first. COCO keypoints end at the eyes/ears and ankles; the 10 % extra
+on each side covers the top of the head and the feet of a standing person (checked on the
+shipped body model in the tests).
 """
 
 from __future__ import annotations
@@ -24,16 +28,15 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+import torch
 
 from hkpd.camera_conventions import CROP_SIZE
 from hkpd.prediction.pixel_maps import Points, scale_and_shift
+from hkpd.proxy import CROP_MARGIN, square_box_around_keypoints
 
-CROP_MARGIN = 1.2
-"""Crop side as a multiple of the keypoints' (or bbox's) longer extent. Must match the margin
-used to crop synthetic training images (``hkpd.proxy.CROP_MARGIN``)."""
-
-KEYPOINT_CONFIDENCE_THRESHOLD = 0.6
-"""Keypoints below this confidence do not place the box (the paper's heatmap threshold)."""
+BOX_CONFIDENCE_THRESHOLD = 0.0
+"""Default: keypoints below this confidence do not place the box. 0 uses them all, like the
+synthetic training crops; raise it for detectors whose low-confidence points are unreliable."""
 
 MIN_BOX_SIDE = 8.0
 """Smallest box side, in original pixels; a smaller box means the keypoints are degenerate."""
@@ -70,16 +73,20 @@ class CropTransform:
         keypoints: np.ndarray,
         confidences: np.ndarray | None = None,
         *,
+        image_size: tuple[int, int] | None = None,
         margin: float = CROP_MARGIN,
-        min_confidence: float = KEYPOINT_CONFIDENCE_THRESHOLD,
+        min_confidence: float = BOX_CONFIDENCE_THRESHOLD,
         size: int = CROP_SIZE,
     ) -> CropTransform:
-        """Square box around the confident keypoints.
+        """Square box around the keypoints (the training crops' rule, see the module docstring).
 
         Args:
             keypoints: ``(J, 2)`` original-photo pixels (e.g. ``KeypointDetection.keypoints``).
             confidences: ``(J,)``; None counts every keypoint.
-            margin: side = ``margin * max(width, height)`` of the confident keypoints' box.
+            image_size: ``(width, height)`` of the photo; when given, keypoints outside it are
+                moved onto its border, so the box does not reach into what the photo does not
+                show (a person cut off at the knees fills the crop down to the photo's edge).
+            margin: side = ``margin * max(width, height)`` of the keypoints' bounding box.
             min_confidence: keypoints below it are ignored.
             size: crop side in pixels.
 
@@ -105,8 +112,13 @@ class CropTransform:
                 "box needs at least two. The person is barely visible: use a clearer photo or "
                 "give the person's box (--bbox)"
             )
-        low, high = points[keep].min(0), points[keep].max(0)
-        return cls._square((low + high) / 2, margin * float((high - low).max()), size)
+        if image_size is not None:
+            width, height = image_size
+            points = np.clip(points, -0.5, [width - 0.5, height - 0.5])
+        centre, side = square_box_around_keypoints(
+            torch.from_numpy(np.nan_to_num(points))[None], torch.from_numpy(keep)[None], margin
+        )
+        return cls._square(centre[0].numpy(), float(side[0]), size)
 
     @classmethod
     def from_bbox(
