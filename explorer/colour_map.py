@@ -1,0 +1,75 @@
+"""Colours for per-vertex uncertainty, and the colour-bar legend that explains them.
+
+The scale is FIXED (0 .. ``max_cm``) rather than stretched to each prediction, so that hiding a
+limb visibly turns it warmer instead of silently rescaling everything.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+_STOPS = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+_COLOURS = np.array(
+    [
+        [38, 70, 170],  # deep blue: certain
+        [40, 160, 190],  # teal
+        [245, 225, 110],  # sand
+        [240, 125, 45],  # orange
+        [175, 25, 40],  # dark red: very uncertain
+    ],
+    dtype=np.float64,
+)
+
+DEFAULT_MAX_CM = 15.0
+"""Default top of the uncertainty colour scale, centimetres."""
+
+
+def uncertainty_colours(uncertainty_m: np.ndarray, max_cm: float = DEFAULT_MAX_CM) -> np.ndarray:
+    """Map uncertainties to RGB colours.
+
+    Args:
+        uncertainty_m: ``(V,)`` per-vertex uncertainty in metres (>= 0).
+        max_cm: value (centimetres) that gets the hottest colour; larger values saturate.
+
+    Returns:
+        ``(V, 3)`` uint8 RGB.
+    """
+    if max_cm <= 0:
+        raise ValueError(f"max_cm must be positive, got {max_cm}")
+    t = np.clip(np.asarray(uncertainty_m, dtype=np.float64) * 100.0 / max_cm, 0.0, 1.0)
+    channels = [np.interp(t, _STOPS, _COLOURS[:, c]) for c in range(3)]
+    return np.round(np.stack(channels, axis=-1)).astype(np.uint8)
+
+
+def legend_image(max_cm: float = DEFAULT_MAX_CM, width: int = 320, height: int = 64) -> np.ndarray:
+    """A horizontal colour bar with tick labels in centimetres.
+
+    Returns:
+        ``(height, width, 3)`` uint8 RGB on a white background.
+    """
+    image = np.full((height, width, 3), 255, dtype=np.uint8)
+    left, right = 14, width - 22
+    top, bottom = 6, height // 2
+    ramp = np.linspace(0.0, max_cm / 100.0, right - left)
+    image[top:bottom, left:right] = uncertainty_colours(ramp, max_cm)[None]
+    cv2.rectangle(image, (left - 1, top - 1), (right, bottom), (90, 90, 90), 1)
+    ticks = _tick_values(max_cm)
+    for value in ticks:
+        x = left + round(value / max_cm * (right - left - 1))
+        cv2.line(image, (x, bottom), (x, bottom + 4), (60, 60, 60), 1)
+        text = f"{value:g}"
+        (w, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.42, 1)
+        cv2.putText(image, text, (x - w // 2, bottom + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.42,
+                    (40, 40, 40), 1, cv2.LINE_AA)  # fmt: skip
+    cv2.putText(image, "cm", (right + 3, bottom + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.42,
+                (40, 40, 40), 1, cv2.LINE_AA)  # fmt: skip
+    return image
+
+
+def _tick_values(max_cm: float) -> list[float]:
+    """About five round tick values from 0 to ``max_cm``."""
+    raw = max_cm / 5.0
+    magnitude = 10.0 ** np.floor(np.log10(raw))
+    step = min((m * magnitude for m in (1.0, 2.0, 2.5, 5.0, 10.0)), key=lambda s: abs(s - raw))
+    return [float(v) for v in np.arange(0.0, max_cm + 1e-9, step)]

@@ -1,0 +1,84 @@
+"""What the explorer needs from a predictor, as a small protocol, and the adapter to the real one.
+
+The app only calls ``provider.predict(image, occluders)`` and reads the posterior and (when
+there is one) the proxy representation from the result, so anything with that method can drive
+it: the library's :class:`hkpd.prediction.Predictor`, or a test double in the test suite.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import torch
+
+from hkpd.prediction.posterior import BodyPosterior
+
+Box = tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class PredictionResult:
+    """One prediction for one photo and set of occluders.
+
+    Attributes:
+        posterior: the body distribution.
+        proxy: ``(18, 256, 256)`` float proxy representation the network saw (edge image, then
+            17 joint heatmaps), or None when the provider does not expose it.
+    """
+
+    posterior: BodyPosterior
+    proxy: torch.Tensor | None = None
+
+
+class PosteriorProvider(Protocol):
+    """Anything that turns a photo and occluder boxes into a :class:`PredictionResult`."""
+
+    def predict(self, image: np.ndarray, occluders: Sequence[Box]) -> PredictionResult:
+        """Predict for ``image`` ``(H, W, 3)`` uint8 RGB with ``occluders`` painted black.
+
+        Args:
+            image: the photo, original pixels.
+            occluders: ``(x0, y0, x1, y1)`` boxes in the photo's pixels (may be empty).
+        """
+        ...
+
+
+class PredictorProvider:
+    """Adapter from :class:`hkpd.prediction.Predictor` to :class:`PosteriorProvider`.
+
+    The predictor is loaded on construction (``Predictor.from_pretrained(path, device)``).
+    The proxy is read from the first of the attributes ``posterior_proxy``, ``last_proxy`` or
+    ``proxy`` that the predictor (or the posterior) has after a prediction.
+    """
+
+    PROXY_ATTRIBUTES = ("posterior_proxy", "last_proxy", "proxy")
+
+    def __init__(self, path: str | Path | None = None, device: str = "auto") -> None:
+        try:
+            from hkpd.prediction import Predictor  # type: ignore[attr-defined]
+        except ImportError as error:
+            raise RuntimeError(
+                "hkpd.prediction.Predictor is not available in this installation; "
+                "the explorer needs it to predict from photos"
+            ) from error
+        self.predictor: Any = Predictor.from_pretrained(path, device=device)
+
+    def predict(self, image: np.ndarray, occluders: Sequence[Box]) -> PredictionResult:
+        boxes = [tuple(map(float, box)) for box in occluders] or None
+        posterior = self.predictor.predict(image, occluders=boxes)
+        proxy = None
+        for owner in (posterior, self.predictor):
+            for name in self.PROXY_ATTRIBUTES:
+                value = getattr(owner, name, None)
+                if isinstance(value, torch.Tensor):
+                    proxy = value.detach().cpu()
+                    break
+            if proxy is not None:
+                break
+        if proxy is not None and proxy.dim() == 4:
+            proxy = proxy[0]
+        return PredictionResult(posterior=posterior, proxy=proxy)

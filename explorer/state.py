@@ -1,0 +1,347 @@
+"""The explorer's application state: pure data and rules, no viser, no torch.
+
+One :class:`ExplorerState` is shared by every browser tab; all access goes through its lock, so
+two tabs editing at once never see half-applied changes. Two version counters tell the worker
+what is stale: ``prediction_version`` (photo or occluders changed: run the predictor again) and
+``sampling_version`` (concentration, shape spread, sample count or seed changed: draw new samples
+from the current posterior).
+
+Occluder boxes are ``(x0, y0, x1, y1)`` in original-photo pixels, pixel-edge coordinates (pixel
+column ``i`` spans ``[i, i + 1)``), exactly what :func:`hkpd.prediction.apply_occluders` takes.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+
+from hkpd.kinematic_tree import BODY_JOINT_NAMES
+
+NUM_BODY_JOINTS = len(BODY_JOINT_NAMES)
+
+MIN_OCCLUDER_SIDE = 2.0
+"""Smallest occluder side in pixels; smaller drags are treated as clicks and ignored."""
+
+MAX_OCCLUDERS = 16
+"""More boxes than this would clutter the panel; the 17th is refused."""
+
+CONCENTRATION_EXPONENT_RANGE = (-1.0, 1.0)
+"""Sliders act on log10 of the factor: 0.1x .. 10x."""
+
+MAX_SAMPLES = 200
+"""Upper bound on the number of samples drawn for the heatmap."""
+
+MAX_DISPLAYED_SAMPLES = 30
+"""Upper bound on the number of sample meshes drawn in the scene."""
+
+LIMB_GROUPS: dict[str, tuple[str, ...]] = {
+    "Spine and head": ("spine1", "spine2", "spine3", "neck", "head"),
+    "Left arm": ("left_collar", "left_shoulder", "left_elbow", "left_wrist", "left_hand"),
+    "Right arm": ("right_collar", "right_shoulder", "right_elbow", "right_wrist", "right_hand"),
+    "Left leg": ("left_hip", "left_knee", "left_ankle", "left_foot"),
+    "Right leg": ("right_hip", "right_knee", "right_ankle", "right_foot"),
+}
+"""The 23 body joints grouped by limb, for the concentration folders."""
+
+
+@dataclass(frozen=True)
+class Occluder:
+    """One rectangular occluder on the photo.
+
+    Attributes:
+        ident: stable id (never reused while the app runs).
+        box: ``(x0, y0, x1, y1)`` original-photo pixels, ``x0 < x1``, ``y0 < y1``.
+        enabled: disabled occluders stay listed but are not applied.
+    """
+
+    ident: int
+    box: tuple[float, float, float, float]
+    enabled: bool = True
+
+
+def clamp_box(
+    box: tuple[float, float, float, float], width: int, height: int
+) -> tuple[float, float, float, float] | None:
+    """Order a box's corners and clip it to a ``width x height`` photo.
+
+    Returns:
+        ``(x0, y0, x1, y1)`` inside ``[0, width] x [0, height]``, or None when less than
+        :data:`MIN_OCCLUDER_SIDE` pixels of it remain on the photo (or it is not finite).
+    """
+    if not all(math.isfinite(v) for v in box):
+        return None
+    x0, x1 = sorted((float(box[0]), float(box[2])))
+    y0, y1 = sorted((float(box[1]), float(box[3])))
+    x0, x1 = min(max(x0, 0.0), width), min(max(x1, 0.0), width)
+    y0, y1 = min(max(y0, 0.0), height), min(max(y1, 0.0), height)
+    if x1 - x0 < MIN_OCCLUDER_SIDE or y1 - y0 < MIN_OCCLUDER_SIDE:
+        return None
+    return (x0, y0, x1, y1)
+
+
+@dataclass(frozen=True)
+class StateSnapshot:
+    """A consistent copy of the state, taken under the lock (safe to read without it)."""
+
+    image_size: tuple[int, int]
+    occluders: tuple[Occluder, ...]
+    joint_exponents: tuple[float, ...]
+    global_exponent: float
+    shape_std_exponent: float
+    num_samples: int
+    num_displayed: int
+    seed: int
+    selected_joint: str
+    prediction_version: int
+    sampling_version: int
+
+    @property
+    def active_boxes(self) -> list[tuple[float, float, float, float]]:
+        """Boxes of the enabled occluders, in list order."""
+        return [o.box for o in self.occluders if o.enabled]
+
+    @property
+    def concentration_factors(self) -> tuple[float, ...]:
+        """``(23,)`` combined factor per joint: ``10 ** (joint + global exponent)``."""
+        return tuple(10.0 ** (e + self.global_exponent) for e in self.joint_exponents)
+
+    @property
+    def shape_std_factor(self) -> float:
+        """Factor on the predicted shape standard deviations."""
+        return 10.0**self.shape_std_exponent
+
+
+@dataclass
+class ExplorerState:
+    """Thread-safe, mutable state of the explorer (see the module docstring).
+
+    Every mutator validates its input, applies the change under the lock and bumps the version
+    that the change makes stale; it returns whether anything changed, so callers can skip work.
+    """
+
+    image_size: tuple[int, int] = (1, 1)
+    num_samples: int = 100
+    num_displayed: int = 10
+    seed: int = 0
+    selected_joint: str = "left_elbow"
+    _occluders: list[Occluder] = field(default_factory=list)
+    _joint_exponents: list[float] = field(default_factory=lambda: [0.0] * NUM_BODY_JOINTS)
+    _global_exponent: float = 0.0
+    _shape_std_exponent: float = 0.0
+    _next_ident: int = 1
+    _prediction_version: int = 0
+    _sampling_version: int = 0
+    _lock: threading.RLock = field(default_factory=threading.RLock, repr=False)
+
+    # ------------------------------------------------------------------ reading
+    @contextmanager
+    def locked(self) -> Iterator[ExplorerState]:
+        """Hold the lock for a multi-step read-modify-write."""
+        with self._lock:
+            yield self
+
+    def snapshot(self) -> StateSnapshot:
+        """A consistent immutable copy of everything."""
+        with self._lock:
+            return StateSnapshot(
+                image_size=self.image_size,
+                occluders=tuple(self._occluders),
+                joint_exponents=tuple(self._joint_exponents),
+                global_exponent=self._global_exponent,
+                shape_std_exponent=self._shape_std_exponent,
+                num_samples=self.num_samples,
+                num_displayed=self.num_displayed,
+                seed=self.seed,
+                selected_joint=self.selected_joint,
+                prediction_version=self._prediction_version,
+                sampling_version=self._sampling_version,
+            )
+
+    def occluder(self, ident: int) -> Occluder:
+        """The occluder with this id; KeyError if it was deleted."""
+        with self._lock:
+            return self._occluders[self._position(ident)]
+
+    # ------------------------------------------------------------------ photo
+    def set_image(self, width: int, height: int) -> None:
+        """A new photo: its size, no occluders; concentration edits are kept."""
+        if width < 1 or height < 1:
+            raise ValueError(f"image size must be positive, got {width}x{height}")
+        with self._lock:
+            self.image_size = (int(width), int(height))
+            self._occluders.clear()
+            self._prediction_version += 1
+
+    # ------------------------------------------------------------------ occluders
+    def add_occluder(self, box: tuple[float, float, float, float]) -> Occluder | None:
+        """Add a box (clamped to the photo); None when too small, off the photo or too many."""
+        with self._lock:
+            clamped = clamp_box(box, *self.image_size)
+            if clamped is None or len(self._occluders) >= MAX_OCCLUDERS:
+                return None
+            occluder = Occluder(self._next_ident, clamped)
+            self._next_ident += 1
+            self._occluders.append(occluder)
+            self._prediction_version += 1
+            return occluder
+
+    def move_occluder(self, ident: int, box: tuple[float, float, float, float]) -> bool:
+        """Give an occluder a new box (clamped). False if unchanged, gone, or clamped away."""
+        with self._lock:
+            if ident not in {o.ident for o in self._occluders}:
+                return False
+            clamped = clamp_box(box, *self.image_size)
+            index = self._position(ident)
+            if clamped is None or clamped == self._occluders[index].box:
+                return False
+            self._occluders[index] = replace(self._occluders[index], box=clamped)
+            self._prediction_version += 1
+            return True
+
+    def set_occluder_enabled(self, ident: int, enabled: bool) -> bool:
+        """Switch an occluder on or off; False if unchanged or gone."""
+        with self._lock:
+            if ident not in {o.ident for o in self._occluders}:
+                return False
+            index = self._position(ident)
+            if self._occluders[index].enabled == bool(enabled):
+                return False
+            self._occluders[index] = replace(self._occluders[index], enabled=bool(enabled))
+            self._prediction_version += 1
+            return True
+
+    def delete_occluder(self, ident: int) -> bool:
+        """Remove an occluder; False if it was already gone (two tabs clicking delete)."""
+        with self._lock:
+            if ident not in {o.ident for o in self._occluders}:
+                return False
+            del self._occluders[self._position(ident)]
+            self._prediction_version += 1
+            return True
+
+    def clear_occluders(self) -> bool:
+        """Remove every occluder; False if there were none."""
+        with self._lock:
+            if not self._occluders:
+                return False
+            self._occluders.clear()
+            self._prediction_version += 1
+            return True
+
+    # ------------------------------------------------------------------ sampling controls
+    def set_joint_exponent(self, joint: str, exponent: float) -> bool:
+        """log10 of one joint's concentration factor, clipped to [-1, 1]."""
+        index = _joint_position(joint)
+        value = _clip_exponent(exponent)
+        with self._lock:
+            if self._joint_exponents[index] == value:
+                return False
+            self._joint_exponents[index] = value
+            self._sampling_version += 1
+            return True
+
+    def set_global_exponent(self, exponent: float) -> bool:
+        """log10 of the factor applied to every joint's concentration, clipped to [-1, 1]."""
+        value = _clip_exponent(exponent)
+        with self._lock:
+            if self._global_exponent == value:
+                return False
+            self._global_exponent = value
+            self._sampling_version += 1
+            return True
+
+    def set_shape_std_exponent(self, exponent: float) -> bool:
+        """log10 of the factor on the shape standard deviations, clipped to [-1, 1]."""
+        value = _clip_exponent(exponent)
+        with self._lock:
+            if self._shape_std_exponent == value:
+                return False
+            self._shape_std_exponent = value
+            self._sampling_version += 1
+            return True
+
+    def reset_concentrations(self) -> bool:
+        """All factors back to 1x; False if they already were."""
+        with self._lock:
+            if (
+                not any(self._joint_exponents)
+                and self._global_exponent == 0.0
+                and self._shape_std_exponent == 0.0
+            ):
+                return False
+            self._joint_exponents = [0.0] * NUM_BODY_JOINTS
+            self._global_exponent = 0.0
+            self._shape_std_exponent = 0.0
+            self._sampling_version += 1
+            return True
+
+    def set_num_samples(self, count: int) -> bool:
+        """Samples drawn for the heatmap, 2 .. MAX_SAMPLES."""
+        value = int(min(max(int(count), 2), MAX_SAMPLES))
+        with self._lock:
+            if value == self.num_samples:
+                return False
+            self.num_samples = value
+            self._sampling_version += 1
+            return True
+
+    def set_num_displayed(self, count: int) -> bool:
+        """Sample meshes drawn in the scene, 0 .. MAX_DISPLAYED_SAMPLES."""
+        value = int(min(max(int(count), 0), MAX_DISPLAYED_SAMPLES))
+        with self._lock:
+            if value == self.num_displayed:
+                return False
+            self.num_displayed = value
+            self._sampling_version += 1
+            return True
+
+    def set_seed(self, seed: int) -> bool:
+        """Seed of the sample draw (>= 0)."""
+        value = max(int(seed), 0)
+        with self._lock:
+            if value == self.seed:
+                return False
+            self.seed = value
+            self._sampling_version += 1
+            return True
+
+    def next_seed(self) -> int:
+        """Resample: move to the next seed and return it."""
+        with self._lock:
+            self.seed += 1
+            self._sampling_version += 1
+            return self.seed
+
+    def select_joint(self, joint: str) -> bool:
+        """The joint shown in the teaching panel."""
+        _joint_position(joint)
+        with self._lock:
+            if joint == self.selected_joint:
+                return False
+            self.selected_joint = joint
+            self._sampling_version += 1
+            return True
+
+    # ------------------------------------------------------------------ helpers
+    def _position(self, ident: int) -> int:
+        for index, occluder in enumerate(self._occluders):
+            if occluder.ident == ident:
+                return index
+        raise KeyError(f"no occluder with id {ident}")
+
+
+def _joint_position(joint: str) -> int:
+    if joint not in BODY_JOINT_NAMES:
+        raise ValueError(f"unknown joint {joint!r}; body joints are {', '.join(BODY_JOINT_NAMES)}")
+    return BODY_JOINT_NAMES.index(joint)
+
+
+def _clip_exponent(exponent: float) -> float:
+    value = float(exponent)
+    if not math.isfinite(value):
+        raise ValueError(f"exponent must be finite, got {exponent}")
+    low, high = CONCENTRATION_EXPONENT_RANGE
+    return round(min(max(value, low), high), 6)
