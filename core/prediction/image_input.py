@@ -188,8 +188,9 @@ def _read_file(path: Path) -> np.ndarray:
         raise ImageInputError(f"{path}: the file is empty; it is not an image")
     try:
         with Image.open(io.BytesIO(data)) as pil:
-            orientation = pil.getexif().get(_EXIF_ORIENTATION_TAG, 1)
+            # Read the raw mode first: getexif() may decode the image and clear the tiles.
             raw_mode = pil.tile[0][3] if pil.tile and isinstance(pil.tile[0][3], str) else ""
+            orientation = pil.getexif().get(_EXIF_ORIENTATION_TAG, 1)
             pil.load()
             if pil.mode in ("RGB", "RGBA") and ";16" in raw_mode:
                 # PIL keeps only the high byte of 16-bit colour; decode the full depth with OpenCV.

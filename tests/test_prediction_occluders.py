@@ -1,0 +1,63 @@
+"""apply_occluders: slicing semantics, clipping, original-photo coordinates, validation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hkpd.prediction import apply_occluders, load_image
+
+
+def grey_image(height: int = 60, width: int = 80) -> np.ndarray:
+    return np.full((height, width, 3), 200, np.uint8)
+
+
+def test_integer_box_blacks_out_exactly_the_slice_and_leaves_the_input_alone() -> None:
+    image = grey_image()
+    out = apply_occluders(image, [(10, 20, 30, 25)])
+    expected = image.copy()
+    expected[20:25, 10:30] = 0
+    np.testing.assert_array_equal(out, expected)
+    assert (image == 200).all()  # a copy, not in place
+
+
+def test_fractional_boxes_cover_every_touched_pixel_and_several_boxes_add_up() -> None:
+    out = apply_occluders(grey_image(), np.array([[10.2, 5.0, 12.5, 6.0], [70, 50, 75, 55]]))
+    black = ~out.any(-1)
+    expected = np.zeros((60, 80), bool)
+    expected[5:6, 10:13] = True
+    expected[50:55, 70:75] = True
+    np.testing.assert_array_equal(black, expected)
+
+
+def test_boxes_are_clipped_to_the_image() -> None:
+    out = apply_occluders(grey_image()[:, :, 0], [(-50, -50, 5, 5), (75, 55, 500, 500)])
+    black = out == 0
+    assert black[:5, :5].all() and black[55:, 75:].all()
+    assert black.sum() == 25 + 25
+
+
+def test_boxes_on_a_downscaled_photo_are_in_original_pixels() -> None:
+    loaded = load_image(grey_image(600, 800), max_side=400)  # working copy at half size
+    occluded = apply_occluders(loaded, [(100, 200, 300, 260)])
+    assert occluded.original_size == (800, 600) and occluded.size == (400, 300)
+    black = ~occluded.pixels.any(-1)
+    expected = np.zeros((300, 400), bool)
+    expected[100:130, 50:150] = True
+    np.testing.assert_array_equal(black, expected)
+    assert loaded.pixels.all()  # the input LoadedImage is unchanged
+
+
+def test_invalid_boxes_raise_clear_errors() -> None:
+    image = grey_image()
+    with pytest.raises(ValueError, match="x1 > x0"):
+        apply_occluders(image, [(30, 10, 20, 40)])
+    with pytest.raises(ValueError, match="entirely outside"):
+        apply_occluders(image, [(100, 10, 120, 40)])
+    with pytest.raises(ValueError, match="wrap a single box"):
+        apply_occluders(image, (1, 2, 3, 4))  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"\(N, 4\)"):
+        apply_occluders(image, [(1, 2, 3)])
+    with pytest.raises(ValueError, match="finite"):
+        apply_occluders(image, [(1, 2, np.nan, 4)])
+    np.testing.assert_array_equal(apply_occluders(image, []), image)
