@@ -1,0 +1,343 @@
+"""``ExplorerApp``: wires the state, the worker, the scene and the panel around a viser server.
+
+Threads: viser runs callbacks on its thread pool; they only change :class:`ExplorerState` and
+submit jobs. The single :class:`CoalescingWorker` runs predictions (lane ``"predict"``,
+debounced), new photos (``"image"``), sampling (``"sample"``) and exports (``"export"``), and
+pushes the results to the global scene, which viser broadcasts to every tab.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import viser
+
+from hkpd.explorer.export import meshes_file, png_bytes
+from hkpd.explorer.panels import ExplorerPanels
+from hkpd.explorer.photo_geometry import (
+    PhotoPlacement,
+    quaternion_to_matrix,
+    screen_rect_to_box,
+)
+from hkpd.explorer.posterior_view import PosteriorView, compute_view
+from hkpd.explorer.provider import PosteriorProvider, PredictionResult
+from hkpd.explorer.scene import HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
+from hkpd.explorer.state import ExplorerState
+from hkpd.explorer.upload import UploadError, decode_upload
+from hkpd.explorer.worker import CoalescingWorker
+
+PREDICTION_DEBOUNCE_S = 0.12
+"""Occluder edits closer together than this trigger one prediction."""
+
+CAMERA_FOV_DEG = 40.0
+SCREENSHOT_SIZE = (720, 1280)
+"""``(height, width)`` of the screenshot requested from the browser."""
+
+
+@dataclass
+class Timings:
+    """Seconds the last jobs took (server side), for the status line and the benchmark."""
+
+    predict: float = 0.0
+    sample: float = 0.0
+    draw: float = 0.0
+
+
+class ExplorerApp:
+    """The running explorer.
+
+    Args:
+        provider: turns a photo and occluders into a posterior (see :mod:`provider`).
+        image: ``(H, W, 3)`` uint8 RGB, the first photo.
+        host: interface to bind (``127.0.0.1`` keeps it on this machine).
+        port: TCP port; 0 picks a free one.
+        num_samples: samples for the heatmap (default 100).
+        num_displayed: sample meshes drawn (default 10).
+    """
+
+    def __init__(
+        self,
+        provider: PosteriorProvider,
+        image: np.ndarray,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        num_samples: int = 100,
+        num_displayed: int = 10,
+    ) -> None:
+        image = _check_image(image)
+        self.provider = provider
+        self.state = ExplorerState()
+        self.state.set_num_samples(num_samples)
+        self.state.set_num_displayed(num_displayed)
+        self.timings = Timings()
+        self.errors: list[str] = []
+        self._lock = threading.RLock()
+        self._image = image
+        self._image_token = 0
+        self._placed_token = -1
+        self._result: PredictionResult | None = None
+        self._view: PosteriorView | None = None
+        self.worker = CoalescingWorker(("image", "predict", "sample", "export"), self._job_failed)
+        self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
+        self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
+        self.scene = ExplorerScene(self.server)
+        self.panels = ExplorerPanels(self.server, self)
+        self.server.scene.on_rect_select(modifier="shift")(self._on_rect_select)
+        self._plain_drag = False
+        self.state.set_image(image.shape[1], image.shape[0])
+        self.panels.show_occluders((), self.state.image_size)
+        self.worker.start()
+        self.worker.submit("predict", self._predict_job)
+
+    # ------------------------------------------------------------------ public API
+    @property
+    def url(self) -> str:
+        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+
+    @property
+    def view(self) -> PosteriorView | None:
+        """The last displayed posterior view."""
+        with self._lock:
+            return self._view
+
+    @property
+    def result(self) -> PredictionResult | None:
+        """The last prediction."""
+        with self._lock:
+            return self._result
+
+    def wait_idle(self, timeout: float = 30.0) -> bool:
+        """Block until no work is pending (for tests and benchmarks)."""
+        return self.worker.wait_idle(timeout)
+
+    def stop(self) -> None:
+        """Stop the worker and the server."""
+        self.worker.stop()
+        self.server.stop()
+
+    def add_occluder(self, box: tuple[float, float, float, float]) -> bool:
+        """Add an occluder in photo pixels (what a drag on the photo does)."""
+        return self.occluders_changed(self.state.add_occluder(box) is not None)
+
+    def clear_occluders(self) -> None:
+        self.occluders_changed(self.state.clear_occluders())
+
+    def set_plain_drag_draws(self, enabled: bool) -> None:
+        """Also draw occluders with a plain left drag (the camera then stops orbiting)."""
+        with self._lock:
+            if enabled and not self._plain_drag:
+                self.server.scene.on_rect_select(modifier=None)(self._on_rect_select_plain)
+            elif not enabled and self._plain_drag:
+                self.server.scene.remove_rect_select_callback(self._on_rect_select_plain)
+            self._plain_drag = enabled
+
+    # ------------------------------------------------------------------ change notifications
+    def occluders_changed(self, changed: bool) -> bool:
+        """Redraw the boxes now; predict again once the edits pause."""
+        if changed:
+            snapshot = self.state.snapshot()
+            self.scene.show_occluders(snapshot.occluders)
+            self.panels.show_occluders(snapshot.occluders, snapshot.image_size)
+            self.worker.submit("predict", self._predict_job, delay_s=PREDICTION_DEBOUNCE_S)
+        return changed
+
+    def sampling_changed(self, changed: bool) -> None:
+        """Draw new samples (coalesced: only the newest request runs)."""
+        if changed:
+            self.worker.submit("sample", self._sample_job)
+
+    def redraw(self) -> None:
+        """Redraw the current view after a display option changed."""
+        self.worker.submit("sample", self.scene.refresh)
+
+    def load_upload(self, name: str, content: bytes, client: viser.ClientHandle | None) -> None:
+        """Check an uploaded photo now; predict on it in the worker. Errors notify ``client``."""
+        try:
+            image = decode_upload(name, content)
+        except UploadError as error:
+            self._notify(client, "Photo not loaded", str(error), error=True)
+            return
+        self.worker.submit("image", lambda: self._image_job(image, name, client))
+
+    def request_export(self, file_format: str, client: viser.ClientHandle) -> None:
+        self.worker.submit("export", lambda: self._export_job(file_format, client))
+
+    def request_screenshot(self, client: viser.ClientHandle) -> None:
+        self.worker.submit("export", lambda: self._screenshot_job(client))
+
+    # ------------------------------------------------------------------ pointer events
+    def _on_rect_select(self, event: viser.SceneRectSelectEvent) -> None:
+        placement = self.scene.placement
+        if placement is None:
+            return
+        camera = event.client.camera
+        box = screen_rect_to_box(
+            event.screen_min,
+            event.screen_max,
+            camera.position,
+            quaternion_to_matrix(camera.wxyz),
+            camera.fov,
+            camera.aspect,
+            placement,
+        )
+        if box is None or not self.add_occluder(box):
+            self._notify(
+                event.client,
+                "No occluder drawn",
+                "Drag a box over the photo (at least 2 pixels each way).",
+            )
+
+    def _on_rect_select_plain(self, event: viser.SceneRectSelectEvent) -> None:
+        self._on_rect_select(event)
+
+    # ------------------------------------------------------------------ jobs (worker thread)
+    def _predict_job(self) -> None:
+        snapshot = self.state.snapshot()
+        with self._lock:
+            image, token = self._image, self._image_token
+        started = time.perf_counter()
+        result = self.provider.predict(image, snapshot.active_boxes)
+        self.timings.predict = time.perf_counter() - started
+        self._show_prediction(result, image, token)
+
+    def _image_job(self, image: np.ndarray, name: str, client: viser.ClientHandle | None) -> None:
+        started = time.perf_counter()
+        try:
+            result = self.provider.predict(image, [])
+        except Exception as error:  # the predictor's own message says what is wrong
+            self._notify(client, "Photo not loaded", f"{name}: {error}", error=True)
+            return
+        self.timings.predict = time.perf_counter() - started
+        with self._lock:
+            self._image = image
+            self._image_token += 1
+            token = self._image_token
+            self.state.set_image(image.shape[1], image.shape[0])
+        snapshot = self.state.snapshot()
+        self.panels.show_occluders(snapshot.occluders, snapshot.image_size)
+        self._show_prediction(result, image, token)
+        self._notify(client, "Photo loaded", name)
+
+    def _show_prediction(self, result: PredictionResult, image: np.ndarray, token: int) -> None:
+        with self._lock:
+            if token != self._image_token:
+                return  # a newer photo replaced this one meanwhile
+            self._result = result
+            new_photo = token != self._placed_token
+            self._placed_token = token
+        posterior = result.posterior
+        if new_photo:
+            placement = photo_placement(result, image.shape[1], image.shape[0])
+            self.scene.place_photo(image, placement)
+            self._frame_camera(placement)
+        self.scene.show_occluders(self.state.snapshot().occluders)
+        self.scene.show_keypoints(posterior.keypoints.numpy(), posterior.confidences.numpy())
+        self.panels.show_proxy(result.proxy)
+        self._sample_job()
+
+    def _sample_job(self) -> None:
+        with self._lock:
+            result = self._result
+        if result is None:
+            return
+        snapshot = self.state.snapshot()
+        started = time.perf_counter()
+        view = compute_view(result.posterior, snapshot)
+        drawn = time.perf_counter()
+        self.scene.show_view(view, faces=result.posterior.body.faces.numpy())
+        done = time.perf_counter()
+        self.timings.sample, self.timings.draw = drawn - started, done - drawn
+        with self._lock:
+            self._view = view
+        index = list(snapshot.concentration_factors)
+        joint_factor = index[_joint_index(snapshot.selected_joint)]
+        self.panels.show_teaching(view.axes.joint, view.axes.concentrations, joint_factor)
+        self.panels.show_status(
+            f"Prediction {self.timings.predict * 1000:.0f} ms · "
+            f"{snapshot.num_samples} samples + heatmap {self.timings.sample * 1000:.0f} ms · "
+            f"drawing {self.timings.draw * 1000:.0f} ms"
+        )
+
+    def _export_job(self, file_format: str, client: viser.ClientHandle) -> None:
+        view = self.view
+        if view is None:
+            return
+        data = meshes_file(view.mode_vertices, view.sample_vertices, self.scene.faces, file_format)
+        client.send_file_download(f"hkpd_bodies.{file_format}", data)
+
+    def _screenshot_job(self, client: viser.ClientHandle) -> None:
+        height, width = SCREENSHOT_SIZE
+        image = client.get_render(height, width, transport_format="png", timeout=20.0)
+        client.send_file_download("hkpd_explorer.png", png_bytes(image))
+
+    def _job_failed(self, lane: str, error: BaseException) -> None:
+        message = f"{type(error).__name__}: {error}"
+        self.errors.append(f"{lane}: {message}")
+        for client in self.server.get_clients().values():
+            self._notify(client, f"Could not {lane}", message, error=True)
+
+    # ------------------------------------------------------------------ helpers
+    def _frame_camera(self, placement: PhotoPlacement) -> None:
+        left = placement.centre[0] - placement.width_m / 2
+        right = HEATMAP_OFFSET + 0.45
+        centre_x = (left + right) / 2 + 0.12 * (right - left)  # the panel covers the right
+        half_width = (right - left) / 2 + 0.25
+        half_height = max(placement.height_m, 2.0) / 2 + 0.1
+        tan_half = math.tan(math.radians(CAMERA_FOV_DEG) / 2)
+        distance = max(half_height / tan_half, half_width / (tan_half * 1.6)) * 1.1
+        position = (centre_x, 0.15, distance)
+        look_at = (centre_x, 0.0, 0.0)
+        self.server.initial_camera.position = position
+        self.server.initial_camera.look_at = look_at
+        for client in self.server.get_clients().values():
+            client.camera.position = position
+            client.camera.look_at = look_at
+
+    @staticmethod
+    def _notify(
+        client: viser.ClientHandle | None, title: str, body: str, error: bool = False
+    ) -> None:
+        if client is None:
+            return
+        client.add_notification(
+            title, body, auto_close_seconds=8.0 if error else 3.0, color="red" if error else None
+        )
+
+
+def photo_placement(result: PredictionResult, width: int, height: int) -> PhotoPlacement:
+    """Size and place the photo so that the person in it stands as tall as the mode body.
+
+    The photo's scale is the mode's 3D keypoint height over its 2D keypoint height (clamped to
+    keep odd predictions from making a tiny or huge photo); the hips line up with the body's.
+    """
+    mode = result.posterior.mode()
+    points3d = mode.keypoints3d[0].double().numpy()
+    points2d = mode.keypoints2d[0].double().numpy()
+    extent2d = np.ptp(points2d[:, 1])
+    metres_per_pixel = np.ptp(points3d[:, 1]) / extent2d if extent2d > 1 else 2.0 / height
+    height_m = float(np.clip(height * metres_per_pixel, 1.0, 4.0))
+    metres_per_pixel = height_m / height
+    hips2d = points2d[11:13].mean(0)
+    hips3d = points3d[11:13].mean(0)
+    centre_y = -hips3d[1] + (hips2d[1] - height / 2) * metres_per_pixel
+    width_m = height_m * width / height
+    centre_x = -(PHOTO_GAP + width_m / 2)
+    return PhotoPlacement(width, height, (centre_x, float(centre_y), 0.0), height_m)
+
+
+def _joint_index(joint: str) -> int:
+    from hkpd.kinematic_tree import BODY_JOINT_NAMES
+
+    return BODY_JOINT_NAMES.index(joint)
+
+
+def _check_image(image: np.ndarray) -> np.ndarray:
+    array = np.asarray(image)
+    if array.ndim != 3 or array.shape[2] != 3 or array.dtype != np.uint8:
+        raise ValueError(f"the photo must be (H, W, 3) uint8 RGB, got {array.shape} {array.dtype}")
+    return np.ascontiguousarray(array)

@@ -1,0 +1,284 @@
+"""The explorer's GUI panel (viser's global GUI: every tab sees and drives the same controls).
+
+Callbacks here only touch the state and ask the app for work; nothing heavy runs in them.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+import viser
+
+from hkpd.explorer.colour_map import DEFAULT_MAX_CM, legend_image
+from hkpd.explorer.state import (
+    CONCENTRATION_EXPONENT_RANGE,
+    LIMB_GROUPS,
+    MAX_DISPLAYED_SAMPLES,
+    MAX_SAMPLES,
+    Occluder,
+)
+from hkpd.kinematic_tree import BODY_JOINT_NAMES
+
+if TYPE_CHECKING:
+    from hkpd.explorer.app import ExplorerApp
+
+EXPONENT_MARKS = ((-1.0, "0.1×"), (0.0, "1×"), (1.0, "10×"))
+
+EXPLANATION = """\
+**What you are looking at.** The photo (left) goes through the network, which predicts a
+*probability distribution* over 3D bodies, not one body. The solid body is the most likely one
+(the mode); the blue ghosts are samples from the distribution; the body on the right is coloured
+by how far its vertices move across 100 samples (blue: certain, red: uncertain).
+
+**Try it.** Shift + drag on the photo to hide part of the person behind a box: the network loses
+that evidence, the joints that moved the hidden part become less concentrated, and their limb
+spreads out and turns red. The sliders scale each joint's *concentration* by hand.
+
+**The maths.** Each joint's rotation relative to its parent follows a matrix-Fisher
+distribution with parameter F = U S V&#x1D40;. The arrows at the selected joint are its principal
+axes; the numbers are the concentrations s&#x2C7C; + s&#x2096; for rotations about each axis:
+large means confident.
+"""
+
+
+class ExplorerPanels:
+    """Builds the panel and keeps its dynamic parts (occluder list, teaching info) current."""
+
+    def __init__(self, server: viser.ViserServer, app: ExplorerApp) -> None:
+        self.server = server
+        self.app = app
+        gui = server.gui
+        state = app.state
+        gui.configure_theme(control_width="large", show_logo=False, show_share_button=False)
+        self.status = gui.add_markdown("Starting…")
+
+        with gui.add_folder("Photo and occluders"):
+            self.upload = gui.add_upload_button(
+                "Load a photo",
+                icon=viser.Icon.UPLOAD,
+                mime_type="image/*",
+                hint="JPEG/PNG/WebP/BMP/TIFF up to 25 MiB",
+            )
+            self.upload.on_upload(self._on_upload)
+            gui.add_markdown("*Shift + drag on the photo draws an occluder.*")
+            self.draw_mode = gui.add_checkbox(
+                "Plain drag draws",
+                False,
+                hint="Draw occluders without holding Shift (the view stops orbiting)",
+            )
+            self.draw_mode.on_update(lambda _: app.set_plain_drag_draws(self.draw_mode.value))
+            clear = gui.add_button("Remove all occluders", icon=viser.Icon.TRASH)
+            clear.on_click(lambda _: app.clear_occluders())
+            self.occluder_folder = gui.add_folder("Occluders", expand_by_default=True)
+            self._occluder_handles: list[viser.GuiFolderHandle] = []
+            self._occluder_signature: tuple = ()
+
+        with gui.add_folder("Concentration"):
+            low, high = CONCENTRATION_EXPONENT_RANGE
+            self.global_slider = gui.add_slider(
+                "All joints (log10)", low, high, 0.05, 0.0, marks=EXPONENT_MARKS
+            )
+            self.global_slider.on_update(
+                lambda _: app.sampling_changed(state.set_global_exponent(self.global_slider.value))
+            )
+            self.shape_slider = gui.add_slider(
+                "Shape spread (log10)", low, high, 0.05, 0.0, marks=EXPONENT_MARKS
+            )
+            self.shape_slider.on_update(
+                lambda _: app.sampling_changed(
+                    state.set_shape_std_exponent(self.shape_slider.value)
+                )
+            )
+            self.joint_sliders: dict[str, viser.GuiSliderHandle] = {}
+            for group, joints in LIMB_GROUPS.items():
+                with gui.add_folder(group, expand_by_default=False):
+                    for joint in joints:
+                        slider = gui.add_slider(
+                            joint.replace("_", " "), low, high, 0.05, 0.0, marks=EXPONENT_MARKS
+                        )
+                        slider.on_update(self._joint_callback(joint, slider))
+                        self.joint_sliders[joint] = slider
+            reset = gui.add_button("Reset concentrations", icon=viser.Icon.REFRESH)
+            reset.on_click(lambda _: self._reset_concentrations())
+
+        with gui.add_folder("Samples"):
+            self.num_samples = gui.add_slider(
+                "Samples for heatmap", 10, MAX_SAMPLES, 10, state.num_samples
+            )
+            self.num_samples.on_update(
+                lambda _: app.sampling_changed(state.set_num_samples(self.num_samples.value))
+            )
+            self.num_displayed = gui.add_slider(
+                "Sample meshes shown", 0, MAX_DISPLAYED_SAMPLES, 1, state.num_displayed
+            )
+            self.num_displayed.on_update(
+                lambda _: app.sampling_changed(state.set_num_displayed(self.num_displayed.value))
+            )
+            self.seed = gui.add_number("Seed", state.seed, min=0, step=1)
+            self.seed.on_update(lambda _: app.sampling_changed(state.set_seed(self.seed.value)))
+            resample = gui.add_button("Resample", icon=viser.Icon.DICE)
+            resample.on_click(lambda _: self._resample())
+            self.show_samples = gui.add_checkbox("Show sample meshes", True)
+            self.show_heatmap = gui.add_checkbox("Show uncertainty body", True)
+            self.show_reprojection = gui.add_checkbox("Show 2D reprojection", True)
+            for box in (self.show_samples, self.show_heatmap, self.show_reprojection):
+                box.on_update(lambda _: self._display_options())
+            self.heat_max = gui.add_slider("Colour scale top (cm)", 2.0, 40.0, 1.0, DEFAULT_MAX_CM)
+            self.heat_max.on_update(lambda _: self._display_options())
+            self.legend = gui.add_image(legend_image(DEFAULT_MAX_CM), label="Uncertainty")
+
+        with gui.add_folder("Teaching"):
+            self.joint = gui.add_dropdown(
+                "Joint", BODY_JOINT_NAMES, initial_value=state.selected_joint
+            )
+            self.joint.on_update(
+                lambda _: app.sampling_changed(state.select_joint(self.joint.value))
+            )
+            self.axes_text = gui.add_markdown("")
+            self.proxy_edges = gui.add_image(np.zeros((64, 64, 3), np.uint8), label="Edges")
+            self.proxy_heat = gui.add_image(np.zeros((64, 64, 3), np.uint8), label="Heatmaps")
+            with gui.add_folder("What am I looking at?", expand_by_default=False):
+                gui.add_markdown(EXPLANATION)
+
+        with gui.add_folder("Export", expand_by_default=False):
+            for file_format in ("glb", "ply"):
+                button = gui.add_button(f"Meshes ({file_format.upper()})", icon=viser.Icon.DOWNLOAD)
+                button.on_click(self._export_callback(file_format))
+            shot = gui.add_button("Screenshot (PNG)", icon=viser.Icon.CAMERA)
+            shot.on_click(lambda event: app.request_screenshot(event.client))
+
+    # ------------------------------------------------------------------ callbacks
+    def _joint_callback(self, joint: str, slider: viser.GuiSliderHandle):
+        def callback(_event) -> None:
+            self.app.sampling_changed(self.app.state.set_joint_exponent(joint, slider.value))
+
+        return callback
+
+    def _export_callback(self, file_format: str):
+        def callback(event) -> None:
+            self.app.request_export(file_format, event.client)
+
+        return callback
+
+    def _on_upload(self, event) -> None:
+        uploaded = self.upload.value
+        self.app.load_upload(uploaded.name, uploaded.content, event.client)
+
+    def _reset_concentrations(self) -> None:
+        changed = self.app.state.reset_concentrations()
+        for slider in (self.global_slider, self.shape_slider, *self.joint_sliders.values()):
+            slider.value = 0.0
+        self.app.sampling_changed(changed)
+
+    def _resample(self) -> None:
+        seed = self.app.state.next_seed()
+        self.seed.value = seed
+        self.app.sampling_changed(True)
+
+    def _display_options(self) -> None:
+        scene = self.app.scene
+        scene.show_samples = self.show_samples.value
+        scene.show_heatmap = self.show_heatmap.value
+        scene.show_reprojection = self.show_reprojection.value
+        if scene.heatmap_max_cm != self.heat_max.value:
+            scene.heatmap_max_cm = float(self.heat_max.value)
+            self.legend.image = legend_image(scene.heatmap_max_cm)
+        self.app.redraw()
+
+    # ------------------------------------------------------------------ dynamic parts
+    def show_occluders(self, occluders: tuple[Occluder, ...], image_size: tuple[int, int]) -> None:
+        """Rebuild the occluder list when occluders were added, deleted or toggled elsewhere."""
+        signature = (*((o.ident, o.enabled) for o in occluders), image_size)
+        if signature == self._occluder_signature:
+            self._sync_sliders(occluders)
+            return
+        self._occluder_signature = signature
+        for handle in self._occluder_handles:
+            handle.remove()
+        self._occluder_handles = []
+        self._box_sliders: dict[int, list[viser.GuiSliderHandle]] = {}
+        width, height = image_size
+        with self.occluder_folder:
+            if not occluders:
+                self._occluder_handles.append(self.server.gui.add_folder("(none yet)"))
+            for occluder in occluders:
+                folder = self.server.gui.add_folder(f"Occluder #{occluder.ident}")
+                self._occluder_handles.append(folder)
+                with folder:
+                    enabled = self.server.gui.add_checkbox("On", occluder.enabled)
+                    enabled.on_update(self._toggle_callback(occluder.ident, enabled))
+                    sliders = []
+                    for k, label in enumerate(("x0", "y0", "x1", "y1")):
+                        limit = width if k % 2 == 0 else height
+                        sliders.append(
+                            self.server.gui.add_slider(
+                                label, 0.0, float(limit), 1.0, float(occluder.box[k])
+                            )
+                        )
+                    for slider in sliders:
+                        slider.on_update(self._move_callback(occluder.ident, sliders))
+                    self._box_sliders[occluder.ident] = sliders
+                    delete = self.server.gui.add_button(
+                        "Delete", color="red", icon=viser.Icon.TRASH
+                    )
+                    delete.on_click(self._delete_callback(occluder.ident))
+
+    def _sync_sliders(self, occluders: tuple[Occluder, ...]) -> None:
+        for occluder in occluders:
+            for slider, value in zip(
+                self._box_sliders.get(occluder.ident, []), occluder.box, strict=False
+            ):
+                if abs(slider.value - value) > 0.5:
+                    slider.value = round(value)
+
+    def _toggle_callback(self, ident: int, checkbox: viser.GuiCheckboxHandle):
+        def callback(_event) -> None:
+            self.app.occluders_changed(self.app.state.set_occluder_enabled(ident, checkbox.value))
+
+        return callback
+
+    def _move_callback(self, ident: int, sliders: list[viser.GuiSliderHandle]):
+        def callback(_event) -> None:
+            box = tuple(float(s.value) for s in sliders)
+            self.app.occluders_changed(self.app.state.move_occluder(ident, box))
+
+        return callback
+
+    def _delete_callback(self, ident: int):
+        def callback(_event) -> None:
+            self.app.occluders_changed(self.app.state.delete_occluder(ident))
+
+        return callback
+
+    def show_teaching(self, joint: str, concentrations: np.ndarray, factor: float) -> None:
+        """Numbers for the selected joint's principal axes."""
+        names = ("red", "green", "blue")
+        rows = "\n".join(
+            f"| {name} | {value:,.1f} |" for name, value in zip(names, concentrations, strict=True)
+        )
+        self.axes_text.content = (
+            f"**{joint.replace('_', ' ')}** (factor {factor:.2g}×): concentration "
+            f"s&#x2C7C; + s&#x2096; about each principal axis\n\n| axis | concentration |\n"
+            f"|---|---|\n{rows}"
+        )
+
+    def show_proxy(self, proxy: torch.Tensor | None) -> None:
+        """The proxy representation the network saw: the edge image and the heatmaps."""
+        if proxy is None:
+            self.proxy_edges.visible = False
+            self.proxy_heat.visible = False
+            return
+        array = proxy.detach().float().cpu().numpy()
+        edges = (np.clip(array[0], 0, 1) * 255).astype(np.uint8)
+        self.proxy_edges.image = np.repeat(edges[:, :, None], 3, axis=2)
+        heat = np.clip(array[1:].max(axis=0), 0, 1)
+        colour = np.stack([heat * 255, heat * 170, 40 + heat * 0], axis=-1)
+        background = np.repeat(edges[:, :, None] * 0.35, 3, axis=2)
+        self.proxy_heat.image = np.clip(np.maximum(colour, background), 0, 255).astype(np.uint8)
+        self.proxy_edges.visible = True
+        self.proxy_heat.visible = True
+
+    def show_status(self, text: str) -> None:
+        self.status.content = text

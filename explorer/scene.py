@@ -1,0 +1,330 @@
+"""Everything drawn in the 3D scene, through viser's GLOBAL scene (broadcast to every tab).
+
+Layout (world y up, viewer on +z): the photo on the left, the mode body with its sample
+"ghosts" in the middle, and a second copy of the mode coloured by per-vertex uncertainty on the
+right. Photo and bodies live in nodes turned to OpenCV axes (see :mod:`photo_geometry`), so
+pixel and body-frame coordinates are used as they are.
+
+The per-vertex heatmap is a coloured point cloud over the vertices of a neutral mesh:
+``add_mesh_simple`` has one colour per mesh, and updating a point cloud's colours and positions
+is a small message (see ``docs/explorer.md`` for the measured alternative, a per-vertex
+coloured GLB).
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import viser
+
+from hkpd.explorer.colour_map import uncertainty_colours
+from hkpd.explorer.photo_geometry import HALF_TURN_ABOUT_X, PhotoPlacement
+from hkpd.explorer.posterior_view import PosteriorView
+from hkpd.explorer.state import Occluder
+
+COCO_BONES = (
+    (5, 7),
+    (7, 9),
+    (6, 8),
+    (8, 10),
+    (5, 6),
+    (5, 11),
+    (6, 12),
+    (11, 12),
+    (11, 13),
+    (13, 15),
+    (12, 14),
+    (14, 16),
+    (0, 1),
+    (0, 2),
+    (1, 3),
+    (2, 4),
+)
+"""COCO-17 skeleton edges."""
+
+MODE_COLOUR = (226, 188, 160)
+SAMPLE_COLOUR = (90, 150, 235)
+SAMPLE_OPACITY = 0.22
+HEATMAP_BASE_COLOUR = (200, 200, 200)
+AXIS_COLOURS = np.array([[230, 60, 60], [60, 180, 75], [60, 110, 230]], dtype=np.uint8)
+
+BODY_POSITION = (0.0, 0.0, 0.0)
+HEATMAP_OFFSET = 1.05
+"""Metres between the sample body and the heatmap body."""
+PHOTO_GAP = 0.55
+"""Metres between the photo's right edge and the body's centre."""
+OVERLAY_LIFT = -0.004
+"""Local z of drawings on the photo (negative: towards the viewer)."""
+
+
+class ExplorerScene:
+    """Creates and updates the scene nodes. Thread-safe (one lock around every update).
+
+    Args:
+        server: the viser server.
+    """
+
+    def __init__(self, server: viser.ViserServer) -> None:
+        self.server = server
+        self.faces = np.zeros((0, 3), dtype=np.uint32)
+        self.placement: PhotoPlacement | None = None
+        self.show_samples = True
+        self.show_heatmap = True
+        self.show_reprojection = True
+        self.heatmap_max_cm = 15.0
+        self._lock = threading.RLock()
+        self._samples: list[viser.MeshHandle] = []
+        self._mode: viser.MeshHandle | None = None
+        self._heat_base: viser.MeshHandle | None = None
+        self._heat_points: viser.PointCloudHandle | None = None
+        self._occluder_nodes: list[viser.SceneNodeHandle] = []
+        self._last_view: PosteriorView | None = None
+        server.scene.set_up_direction("+y")
+        server.scene.world_axes.visible = False
+        self.scene_body = server.scene.add_frame(
+            "/body", wxyz=HALF_TURN_ABOUT_X, position=BODY_POSITION, show_axes=False
+        )
+        self.scene_heat = server.scene.add_frame(
+            "/heat", wxyz=HALF_TURN_ABOUT_X, position=(HEATMAP_OFFSET, 0.0, 0.0), show_axes=False
+        )
+        server.scene.add_grid(
+            "/floor",
+            width=8.0,
+            height=4.0,
+            plane="xz",
+            position=(0.0, -1.0, 0.0),
+            cell_color=(215, 215, 215),
+            section_color=(180, 180, 180),
+        )
+
+    # ------------------------------------------------------------------ photo
+    def place_photo(self, image: np.ndarray, placement: PhotoPlacement) -> None:
+        """Show a new photo (``(H, W, 3)`` uint8) at ``placement``; clears overlays."""
+        with self._lock:
+            self.placement = placement
+            self.server.scene.add_image(
+                "/photo",
+                image,
+                placement.width_m,
+                placement.height_m,
+                format="jpeg",
+                jpeg_quality=90,
+                wxyz=HALF_TURN_ABOUT_X,
+                position=placement.centre,
+                cast_shadow=False,
+                receive_shadow=False,
+            )
+            self._occluder_nodes = []
+
+    def _photo_points(self, pixels: np.ndarray) -> np.ndarray:
+        """``(..., 2)`` photo pixels (pixel-centre coords) to ``(..., 3)`` photo-local points."""
+        assert self.placement is not None
+        local = self.placement.pixels_to_local(np.asarray(pixels) + 0.5)
+        lift = np.full((*local.shape[:-1], 1), OVERLAY_LIFT)
+        return np.concatenate([local, lift], axis=-1).astype(np.float32)
+
+    def show_keypoints(self, keypoints: np.ndarray, confidences: np.ndarray) -> None:
+        """Detected keypoints ``(17, 2)`` on the photo; confident green, doubtful red."""
+        with self._lock:
+            if self.placement is None:
+                return
+            colours = np.where(
+                (np.asarray(confidences) >= 0.6)[:, None], [[40, 220, 90]], [[235, 50, 50]]
+            ).astype(np.uint8)
+            self.server.scene.add_point_cloud(
+                "/photo/keypoints",
+                self._photo_points(keypoints),
+                colours,
+                point_size=0.03,
+                point_shape="circle",
+                point_shading="flat",
+            )
+
+    def show_occluders(self, occluders: tuple[Occluder, ...]) -> None:
+        """Draw every occluder: enabled ones dark and filled, disabled ones as outlines."""
+        with self._lock:
+            if self.placement is None:
+                return
+            for node in self._occluder_nodes:
+                node.remove()
+            self._occluder_nodes = []
+            for occluder in occluders:
+                x0, y0, x1, y1 = occluder.box
+                corners = self._photo_points(
+                    np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]) - 0.5
+                )
+                corners[:, 2] = 2 * OVERLAY_LIFT
+                name = f"/photo/occluders/{occluder.ident}"
+                if occluder.enabled:
+                    self._occluder_nodes.append(
+                        self.server.scene.add_mesh_simple(
+                            f"{name}/fill",
+                            corners,
+                            np.array([[0, 1, 2], [0, 2, 3]]),
+                            color=(15, 15, 20),
+                            opacity=0.85,
+                            side="double",
+                            cast_shadow=False,
+                            receive_shadow=False,
+                        )
+                    )
+                edges = np.stack([corners, np.roll(corners, -1, axis=0)], axis=1)
+                edges[:, :, 2] = 3 * OVERLAY_LIFT
+                self._occluder_nodes.append(
+                    self.server.scene.add_line_segments(
+                        f"{name}/outline",
+                        edges,
+                        (250, 200, 40) if occluder.enabled else (160, 160, 160),
+                        thickness=2.0,
+                        thickness_units="screen",
+                    )
+                )
+                self._occluder_nodes.append(
+                    self.server.scene.add_label(
+                        f"{name}/label",
+                        f"#{occluder.ident}",
+                        position=tuple(corners[0]),
+                        font_screen_scale=0.8,
+                        anchor="bottom-left",
+                    )
+                )
+
+    # ------------------------------------------------------------------ bodies
+    def show_view(self, view: PosteriorView, faces: np.ndarray | None = None) -> None:
+        """Update meshes, heatmap, axes and reprojections from a computed view.
+
+        Args:
+            view: what to draw.
+            faces: ``(F, 3)`` body mesh faces; needed the first time and when they change.
+        """
+        with self._lock, self.server.atomic():
+            if faces is not None and not np.array_equal(faces, self.faces):
+                self._drop_meshes()
+                self.faces = np.ascontiguousarray(faces, dtype=np.uint32)
+            self._last_view = view
+            self._update_mode(view.mode_vertices)
+            self._update_samples(view.sample_vertices if self.show_samples else None)
+            self._update_heatmap(view)
+            self._update_axes(view)
+            self._update_reprojection(view)
+
+    def _drop_meshes(self) -> None:
+        for handle in [*self._samples, self._mode, self._heat_base]:
+            if handle is not None:
+                handle.remove()
+        self._samples, self._mode, self._heat_base = [], None, None
+
+    def refresh(self) -> None:
+        """Redraw the last view (after a display option changed)."""
+        with self._lock:
+            if self._last_view is not None:
+                self.show_view(self._last_view)
+
+    def _update_mode(self, vertices: np.ndarray) -> None:
+        if self._mode is None:
+            self._mode = self.server.scene.add_mesh_simple(
+                "/body/mode",
+                vertices,
+                self.faces,
+                color=MODE_COLOUR,
+                cast_shadow=False,
+                receive_shadow=False,
+            )
+        else:
+            self._mode.vertices = vertices
+
+    def _update_samples(self, vertices: np.ndarray | None) -> None:
+        count = 0 if vertices is None else len(vertices)
+        while len(self._samples) > count:
+            self._samples.pop().remove()
+        for index in range(count):
+            assert vertices is not None
+            if index < len(self._samples):
+                self._samples[index].vertices = vertices[index]
+            else:
+                self._samples.append(
+                    self.server.scene.add_mesh_simple(
+                        f"/body/samples/{index:02d}",
+                        vertices[index],
+                        self.faces,
+                        color=SAMPLE_COLOUR,
+                        opacity=SAMPLE_OPACITY,
+                        cast_shadow=False,
+                        receive_shadow=False,
+                    )
+                )
+
+    def _update_heatmap(self, view: PosteriorView) -> None:
+        visible = self.show_heatmap
+        if self._heat_base is None:
+            self._heat_base = self.server.scene.add_mesh_simple(
+                "/heat/base",
+                view.mode_vertices,
+                self.faces,
+                color=HEATMAP_BASE_COLOUR,
+                cast_shadow=False,
+                receive_shadow=False,
+            )
+        else:
+            self._heat_base.vertices = view.mode_vertices
+        colours = uncertainty_colours(view.uncertainty, self.heatmap_max_cm)
+        if self._heat_points is None:
+            self._heat_points = self.server.scene.add_point_cloud(
+                "/heat/points",
+                view.mode_vertices,
+                colours,
+                point_size=0.014,
+                point_shape="circle",
+                point_shading="flat",
+            )
+        else:
+            self._heat_points.points = view.mode_vertices
+            self._heat_points.colors = colours
+        self._heat_base.visible = visible
+        self._heat_points.visible = visible
+
+    def _update_axes(self, view: PosteriorView) -> None:
+        axes = view.axes
+        length = 0.16
+        starts = np.repeat(axes.origin[None], 3, axis=0)
+        ends = starts + length * axes.axes.T
+        self.server.scene.add_arrows(
+            "/body/joint_axes",
+            np.stack([starts, ends], axis=1).astype(np.float32),
+            AXIS_COLOURS,
+            shaft_radius=0.005,
+            head_radius=0.012,
+            head_length=0.03,
+        )
+        for i in range(3):
+            self.server.scene.add_label(
+                f"/body/joint_axes_label_{i}",
+                f"{axes.concentrations[i]:.0f}",
+                position=tuple((ends[i] + 0.02 * axes.axes[:, i]).tolist()),
+                font_screen_scale=0.9,
+                anchor="center-center",
+            )
+
+    def _update_reprojection(self, view: PosteriorView) -> None:
+        if self.placement is None:
+            return
+        bones = np.array(COCO_BONES)
+        shown = view.sample_keypoints2d[: max(len(view.sample_vertices), 1)]
+        segments = self._photo_points(shown[:, bones].reshape(-1, 2, 2))
+        mode_segments = self._photo_points(view.mode_keypoints2d[bones])
+        points = np.concatenate([segments, mode_segments]).astype(np.float32)
+        colours = np.concatenate(
+            [
+                np.broadcast_to(np.array(SAMPLE_COLOUR, np.uint8), (len(segments), 2, 3)),
+                np.broadcast_to(np.array((255, 140, 30), np.uint8), (len(mode_segments), 2, 3)),
+            ]
+        )
+        self.server.scene.add_line_segments(
+            "/photo/reprojection",
+            points,
+            colours,
+            thickness=1.5,
+            thickness_units="screen",
+            visible=self.show_reprojection,
+        )
