@@ -7,6 +7,7 @@ Prints markdown tables (paste them into docs/prediction.md):
 2. Start-up: creating the ``Pose`` graph plus the first call (the first call is slower).
 3. ``CropTransform.crop_image`` to 256 x 256 for a photo-sized box and for large boxes on a
    4096-pixel image (the area-averaging path), and ``apply_occluders``.
+4. ``load_image`` of a 6000 x 4000 JPEG, which is downscaled to 4096 pixels.
 
 Usage: python benchmarks/bench_prediction.py [--photos DIR] [--repeats 10]
 """
@@ -107,6 +108,20 @@ def bench_crops(photo: Path, repeats: int) -> None:
     print(f"| apply_occluders, 5 boxes on {width}x{height} | {ms(occlude)} |")
 
 
+def bench_large_photo(photo: Path, repeats: int) -> None:
+    """``load_image`` of a 6000 x 4000 JPEG (the demo photo upscaled), downscaled to 4096."""
+    import tempfile
+
+    pixels = cv2.resize(load_image(photo).pixels, (6000, 4000), interpolation=cv2.INTER_CUBIC)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "large.jpg"
+        cv2.imwrite(str(path), pixels[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, 90])
+        loads = timings(lambda: load_image(path), max(3, repeats // 2))
+    print("\n| load_image of a 6000x4000 JPEG (decode + downscale to 4096x2731) | ms |")
+    print("|---|---|")
+    print(f"| median (best) | {ms(loads)} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--photos", type=Path, default=DEFAULT_PHOTOS)
@@ -126,6 +141,7 @@ def main() -> None:
     print()
     bench_detection(photos, args.repeats)
     bench_crops(photos[-1], args.repeats)
+    bench_large_photo(photos[-1], args.repeats)
 
 
 if __name__ == "__main__":

@@ -217,7 +217,7 @@ def _unreadable_message(path: Path, error: Exception) -> str:
         )
     return (
         f"{path}: not a readable image file (PIL cannot identify its format); pass a JPEG, "
-        "PNG, TIFF, WebP or BMP photo"
+        "PNG, TIFF, WebP or BMP photo (convert HEIC/HEIF phone photos to JPEG first)"
     )
 
 
