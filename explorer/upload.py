@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import PurePath
 
-import cv2
 import numpy as np
+from PIL import Image, UnidentifiedImageError
+
+from hkpd.prediction.image_input import ImageInputError, load_image
 
 MAX_UPLOAD_BYTES = 25 * 1024 * 1024
 """Uploads larger than this are refused."""
@@ -28,7 +31,8 @@ def decode_upload(name: str, content: bytes) -> np.ndarray:
         content: the file's bytes.
 
     Returns:
-        ``(H, W, 3)`` uint8 RGB.
+        ``(H, W, 3)`` uint8 RGB, EXIF orientation applied, huge photos downscaled as
+        :func:`hkpd.prediction.load_image` does.
 
     Raises:
         UploadError: wrong type, empty, too large, undecodable or too small.
@@ -45,10 +49,15 @@ def decode_upload(name: str, content: bytes) -> np.ndarray:
             f"{name!r} is {len(content) / 2**20:.1f} MiB; the limit is "
             f"{MAX_UPLOAD_BYTES / 2**20:.0f} MiB"
         )
-    decoded = cv2.imdecode(np.frombuffer(content, dtype=np.uint8), cv2.IMREAD_COLOR)
-    if decoded is None:
-        raise UploadError(f"{name!r} could not be decoded as an image (corrupt or not a photo)")
-    height, width = decoded.shape[:2]
+    try:
+        with Image.open(io.BytesIO(content)) as opened:
+            opened.load()
+            loaded = load_image(opened)
+    except (UnidentifiedImageError, OSError, ImageInputError) as error:
+        raise UploadError(
+            f"{name!r} could not be read as an image (corrupt or not a photo): {error}"
+        ) from error
+    width, height = loaded.size
     if min(height, width) < MIN_SIDE:
         raise UploadError(f"{name!r} is only {width}x{height} pixels; need at least {MIN_SIDE}")
-    return cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB)
+    return np.ascontiguousarray(loaded.pixels)

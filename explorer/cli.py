@@ -1,0 +1,133 @@
+"""``hkpd-explore``: start the explorer web app on a photo, or on the built-in demo scene.
+
+Usage::
+
+    hkpd-explore [IMAGE] [--port 8080] [--host 127.0.0.1] [--no-browser] [--model PATH]
+                 [--device auto] [--samples 100] [--meshes 10]
+
+The server binds to 127.0.0.1 unless ``--host`` says otherwise (anyone who can reach the port
+can drive the app and upload files, so a warning is printed). Ctrl-C stops it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import signal
+import sys
+import threading
+import webbrowser
+from collections.abc import Sequence
+
+import numpy as np
+
+from hkpd.explorer.provider import PosteriorProvider, PredictorProvider
+from hkpd.explorer.state import MAX_DISPLAYED_SAMPLES, MAX_SAMPLES
+
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="hkpd-explore",
+        description="See how occlusion and concentration shape the predicted 3D body "
+        "distribution, in your browser.",
+    )
+    parser.add_argument("image", nargs="?", help="photo of one person (default: built-in demo)")
+    parser.add_argument("--port", type=int, default=8080, help="TCP port (default 8080)")
+    parser.add_argument("--host", default="127.0.0.1", help="interface to bind (default local)")
+    parser.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
+    parser.add_argument("--model", default=None, help="trained model checkpoint (default: shipped)")
+    parser.add_argument("--device", default="auto", help="torch device: auto, cpu, cuda, ...")
+    parser.add_argument(
+        "--samples", type=int, default=100, help=f"samples for the heatmap (2..{MAX_SAMPLES})"
+    )
+    parser.add_argument(
+        "--meshes", type=int, default=10, help=f"sample meshes drawn (0..{MAX_DISPLAYED_SAMPLES})"
+    )
+    parser.add_argument(
+        "--provider",
+        default=None,
+        metavar="MODULE:CALLABLE",
+        help="developer option: build the posterior provider with this callable instead of "
+        "loading the trained Predictor (used by the test suite)",
+    )
+    return parser
+
+
+def _load_photo(path: str | None) -> np.ndarray:
+    if path is None:
+        from hkpd.explorer.demo_scene import render_demo_scene
+
+        return render_demo_scene().image
+    from hkpd.prediction.image_input import ImageInputError, load_image
+
+    try:
+        return np.ascontiguousarray(load_image(path).pixels)
+    except ImageInputError as error:
+        raise SystemExit(f"hkpd-explore: cannot use {path!r}: {error}") from None
+
+
+def _build_provider(args: argparse.Namespace) -> PosteriorProvider:
+    if args.provider is not None:
+        module_name, _, attribute = args.provider.partition(":")
+        try:
+            factory = getattr(importlib.import_module(module_name), attribute)
+        except (ImportError, AttributeError, ValueError) as error:
+            raise SystemExit(f"hkpd-explore: --provider {args.provider!r}: {error}") from None
+        return factory()
+    try:
+        return PredictorProvider(args.model, device=args.device)
+    except Exception as error:
+        raise SystemExit(
+            f"hkpd-explore: could not load the predictor ({type(error).__name__}: {error}). "
+            "Pass a trained checkpoint with --model PATH."
+        ) from None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if not 2 <= args.samples <= MAX_SAMPLES:
+        raise SystemExit(f"hkpd-explore: --samples must be in 2..{MAX_SAMPLES}, got {args.samples}")
+    if not 0 <= args.meshes <= MAX_DISPLAYED_SAMPLES:
+        raise SystemExit(
+            f"hkpd-explore: --meshes must be in 0..{MAX_DISPLAYED_SAMPLES}, got {args.meshes}"
+        )
+    if not 0 <= args.port <= 65535:
+        raise SystemExit(f"hkpd-explore: --port must be in 0..65535, got {args.port}")
+    if args.host not in LOOPBACK_HOSTS:
+        print(
+            f"warning: binding to {args.host}: anyone who can reach this port can use the "
+            "explorer and upload files to this machine",
+            file=sys.stderr,
+        )
+    image = _load_photo(args.image)
+    provider = _build_provider(args)
+
+    from hkpd.explorer.app import ExplorerApp
+
+    app = ExplorerApp(
+        provider,
+        image,
+        host=args.host,
+        port=args.port,
+        num_samples=args.samples,
+        num_displayed=args.meshes,
+    )
+    print(f"hkpd explorer running at {app.url}  (Ctrl-C to stop)", flush=True)
+    if not args.no_browser:
+        webbrowser.open(app.url)
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        while not stop.wait(0.5):
+            pass
+    except KeyboardInterrupt:
+        pass
+    print("stopping…", flush=True)
+    app.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
