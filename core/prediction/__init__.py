@@ -10,7 +10,10 @@ Implemented so far (the network-dependent `Predictor` and CLI come next):
   BlazePose (optionally inside a ``bbox``); :class:`NoPersonFoundError` when there is none.
 - :class:`CropTransform`: the square 256-pixel crop around a person and the exact pixel maps
   between crop and photo.
-- :func:`apply_occluders`: black boxes painted over a photo before detection.
+- :func:`apply_occluders`: black boxes painted over a photo before detection
+  (:func:`points_under_boxes`: which keypoints they hide).
+- :func:`prepare_network_input` -> :class:`NetworkInput`: all of the above plus the
+  ``(18, 256, 256)`` proxy, i.e. everything in front of the network.
 """
 
 from hkpd.prediction.crop import BOX_CONFIDENCE_THRESHOLD, CropTransform
@@ -27,7 +30,8 @@ from hkpd.prediction.keypoint_detector import (
     KeypointDetector,
     NoPersonFoundError,
 )
-from hkpd.prediction.occluders import apply_occluders
+from hkpd.prediction.network_input import NetworkInput, prepare_network_input
+from hkpd.prediction.occluders import apply_occluders, points_under_boxes
 
 __all__ = [
     "BOX_CONFIDENCE_THRESHOLD",
@@ -39,7 +43,10 @@ __all__ = [
     "KeypointDetection",
     "KeypointDetector",
     "LoadedImage",
+    "NetworkInput",
     "NoPersonFoundError",
     "apply_occluders",
     "load_image",
+    "points_under_boxes",
+    "prepare_network_input",
 ]

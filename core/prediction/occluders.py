@@ -77,3 +77,23 @@ def _touched(low: float, high: float, length: int) -> slice:
     start = int(np.clip(np.floor(low), 0, length))
     stop = int(np.clip(np.ceil(high), 0, length))
     return slice(start, stop)
+
+
+def points_under_boxes(
+    points: np.ndarray, boxes: Sequence[Sequence[float]] | np.ndarray
+) -> np.ndarray:
+    """Which points lie on a pixel that :func:`apply_occluders` blacks out for these boxes.
+
+    Args:
+        points: ``(..., 2)`` pixel coordinates (pixel centres at integers), in the boxes' pixels.
+        boxes: ``(N, 4)`` ``(x0, y0, x1, y1)``; may be empty.
+
+    Returns:
+        ``(...)`` bool.
+    """
+    pixel = np.floor(np.asarray(points, dtype=np.float64) + 0.5)
+    covered = np.zeros(pixel.shape[:-1], dtype=bool)
+    for x0, y0, x1, y1 in np.asarray(boxes, dtype=np.float64).reshape(-1, 4):
+        u, v = pixel[..., 0], pixel[..., 1]
+        covered |= (u >= np.floor(x0)) & (u < np.ceil(x1)) & (v >= np.floor(y0)) & (v < np.ceil(y1))
+    return covered

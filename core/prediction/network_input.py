@@ -1,0 +1,103 @@
+"""Everything in front of the network for one photo: load, occlude, detect, crop, proxy.
+
+:func:`prepare_network_input` chains :func:`~hkpd.prediction.image_input.load_image`,
+:func:`~hkpd.prediction.occluders.apply_occluders`, :class:`KeypointDetector`,
+:class:`CropTransform` and :func:`hkpd.proxy.build_proxy`, and returns a :class:`NetworkInput`
+holding the ``(18, 256, 256)`` proxy plus what is needed to map the network's answer back to
+the photo (``crop.crop_to_image``). The predictor adds the network and the posterior.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from PIL import Image
+
+from hkpd.prediction.crop import CropTransform
+from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
+from hkpd.prediction.keypoint_detector import KeypointDetection, KeypointDetector
+from hkpd.prediction.occluders import apply_occluders, points_under_boxes
+from hkpd.proxy import build_proxy
+
+
+@dataclass(frozen=True, eq=False)
+class NetworkInput:
+    """The network's input for one person in one photo, and the maps back to the photo.
+
+    Attributes:
+        proxy: ``(18, 256, 256)`` float32: Canny edges of the crop, then 17 COCO joint
+            heatmaps (joints below the proxy's confidence threshold left empty).
+        crop: the square crop (original-photo pixels <-> crop pixels).
+        crop_rgb: ``(256, 256, 3)`` uint8 RGB crop the edges were taken from (occluders
+            painted).
+        keypoints_crop: ``(17, 2)`` detected keypoints in crop pixels.
+        confidences: ``(17,)`` detector confidences, zeroed for keypoints under an occluder.
+        detection: the detector's raw result (original-photo pixels, confidences untouched).
+        image: the photo as loaded, occluders painted.
+    """
+
+    proxy: torch.Tensor
+    crop: CropTransform
+    crop_rgb: np.ndarray
+    keypoints_crop: np.ndarray
+    confidences: np.ndarray
+    detection: KeypointDetection
+    image: LoadedImage
+
+
+def prepare_network_input(
+    image: str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage,
+    detector: KeypointDetector,
+    *,
+    bbox: Sequence[float] | np.ndarray | None = None,
+    occluders: Sequence[Sequence[float]] | np.ndarray = (),
+    max_side: int = MAX_IMAGE_SIDE,
+) -> NetworkInput:
+    """Load a photo, paint occluders, detect the person, crop, and build the proxy.
+
+    Occluders are painted BEFORE detection and edge extraction, and keypoints that land under
+    one get confidence 0: a hidden joint cannot have been seen, although BlazePose still
+    places it, sometimes with a visibility above the proxy's threshold.
+
+    Args:
+        image: anything :func:`load_image` accepts.
+        detector: the (shared, reusable) keypoint detector.
+        bbox: optional ``(x0, y0, x1, y1)`` search region, original-photo pixels.
+        occluders: ``(N, 4)`` black boxes, original-photo pixels.
+        max_side: working-resolution cap passed to :func:`load_image`.
+
+    Returns:
+        The :class:`NetworkInput`.
+
+    Raises:
+        ImageInputError: unreadable or unusable image.
+        NoPersonFoundError: nobody found (in ``bbox``).
+        ValueError: malformed ``bbox`` or occluder boxes, or keypoints too degenerate to crop.
+    """
+    loaded = load_image(image, max_side=max_side)
+    boxes = np.asarray(occluders, dtype=np.float64)
+    if boxes.size:
+        loaded = apply_occluders(loaded, boxes)
+    detection = detector.detect(loaded, bbox=bbox)
+    confidences = np.where(
+        points_under_boxes(detection.keypoints, boxes), 0.0, detection.confidences
+    )
+    crop = CropTransform.from_keypoints(
+        detection.keypoints, detection.confidences, image_size=detection.image_size
+    )
+    crop_rgb = crop.crop_image(loaded.pixels, loaded.scale)
+    keypoints_crop = crop.image_to_crop(detection.keypoints)
+    proxy = build_proxy(crop_rgb, keypoints_crop, confidences)
+    return NetworkInput(
+        proxy=proxy,
+        crop=crop,
+        crop_rgb=crop_rgb,
+        keypoints_crop=keypoints_crop,
+        confidences=confidences,
+        detection=detection,
+        image=loaded,
+    )

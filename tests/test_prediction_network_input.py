@@ -1,0 +1,94 @@
+"""prepare_network_input: occluders before detection, hidden keypoints dropped, proxy layout."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hkpd.prediction import (
+    KeypointDetection,
+    KeypointDetector,
+    LoadedImage,
+    apply_occluders,
+    points_under_boxes,
+    prepare_network_input,
+)
+
+DEMO_PHOTO = Path("/work/shared/data/demo_photos/yogait_t5.jpg")
+
+
+class FixedDetector:
+    """Returns fixed keypoints and records the pixels it was shown."""
+
+    def __init__(self, keypoints: np.ndarray) -> None:
+        self.keypoints = keypoints
+        self.seen: list[np.ndarray] = []
+
+    def detect(self, image: LoadedImage, bbox: object = None) -> KeypointDetection:
+        self.seen.append(image.pixels.copy())
+        return KeypointDetection(
+            keypoints=self.keypoints,
+            confidences=np.full(17, 0.95),
+            person_box=np.array([0.0, 0.0, 1.0, 1.0]),
+            mask_box=None,
+            search_box=None,
+            image_size=image.original_size,
+            seconds=0.0,
+        )
+
+
+def test_points_under_boxes_agrees_with_the_painted_pixels() -> None:
+    rng = np.random.default_rng(0)
+    image = np.full((50, 70), 255, np.uint8)
+    corner = rng.uniform(0, 45, (4, 2))
+    boxes = np.concatenate([corner, corner + rng.uniform(2.5, 20, (4, 2))], 1)
+    painted = apply_occluders(image, boxes)
+    points = rng.uniform(-0.49, 49.49, (500, 2))
+    pixel = np.floor(points + 0.5).astype(int)
+    expected = painted[pixel[:, 1], pixel[:, 0]] == 0
+    np.testing.assert_array_equal(points_under_boxes(points, boxes), expected)
+    assert (
+        points_under_boxes(points, []).shape == (500,) and not points_under_boxes(points, []).any()
+    )
+
+
+def test_occluders_are_painted_before_detection_and_hide_their_keypoints() -> None:
+    rng = np.random.default_rng(1)
+    photo = rng.integers(60, 200, (480, 640, 3), dtype=np.uint8)
+    keypoints = np.stack([np.linspace(250, 390, 17), np.linspace(60, 420, 17)], 1)
+    occluder = (200, 300, 450, 480)  # covers the keypoints with v >= 300
+    detector = FixedDetector(keypoints)
+    prepared = prepare_network_input(photo, detector, occluders=[occluder])  # type: ignore[arg-type]
+
+    assert not detector.seen[0][300:, 200:450].any()  # the detector saw the black box
+    hidden = keypoints[:, 1] >= 299.5
+    np.testing.assert_array_equal(prepared.confidences == 0, hidden)
+    np.testing.assert_array_equal(prepared.detection.confidences, 0.95)  # raw result untouched
+
+    assert tuple(prepared.proxy.shape) == (18, 256, 256)
+    heatmaps = prepared.proxy[1:].numpy()
+    assert (heatmaps[hidden] == 0).all()
+    for joint in np.flatnonzero(~hidden):
+        v, u = np.unravel_index(heatmaps[joint].argmax(), heatmaps[joint].shape)
+        np.testing.assert_allclose([u, v], prepared.keypoints_crop[joint], atol=0.5)
+    np.testing.assert_allclose(
+        prepared.crop.crop_to_image(prepared.keypoints_crop), keypoints, atol=1e-9
+    )
+    # The crop box surrounds all keypoints, the hidden ones included (the training rule).
+    inside = prepared.keypoints_crop
+    assert ((inside > 0) & (inside < 255)).all()
+    edges = prepared.proxy[0].numpy()
+    assert set(np.unique(edges)) <= {0.0, 1.0} and edges.any()
+
+
+@pytest.mark.skipif(not DEMO_PHOTO.is_file(), reason="demo photos not available")
+def test_real_photo_with_the_legs_hidden() -> None:
+    with KeypointDetector() as detector:
+        prepared = prepare_network_input(DEMO_PHOTO, detector, occluders=[(400, 380, 760, 720)])
+    legs = slice(13, 17)  # knees and ankles
+    assert (prepared.confidences[legs] == 0).all()
+    assert (prepared.confidences[:11] > 0.9).all()
+    assert (prepared.proxy[1:][legs] == 0).all()
+    assert prepared.image.original_size == (1080, 720)
