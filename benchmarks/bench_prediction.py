@@ -8,6 +8,7 @@ Prints markdown tables (paste them into docs/prediction.md):
 3. ``CropTransform.crop_image`` to 256 x 256 for a photo-sized box and for large boxes on a
    4096-pixel image (the area-averaging path), and ``apply_occluders``.
 4. ``load_image`` of a 6000 x 4000 JPEG, which is downscaled to 4096 pixels.
+5. ``prepare_network_input``: the whole front end (load, detect, crop, proxy) per photo.
 
 Usage: python benchmarks/bench_prediction.py [--photos DIR] [--repeats 10]
 """
@@ -25,7 +26,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hkpd.prediction import CropTransform, KeypointDetector, apply_occluders, load_image
+from hkpd.prediction import (
+    CropTransform,
+    KeypointDetector,
+    apply_occluders,
+    load_image,
+    prepare_network_input,
+)
 
 DEFAULT_PHOTOS = Path("/work/shared/data/demo_photos")
 
@@ -108,6 +115,18 @@ def bench_crops(photo: Path, repeats: int) -> None:
     print(f"| apply_occluders, 5 boxes on {width}x{height} | {ms(occlude)} |")
 
 
+def bench_network_input(photos: list[Path], repeats: int) -> None:
+    """The whole front end per photo: load, detect, crop, proxy (warm detector)."""
+    with KeypointDetector() as detector:
+        prepare_network_input(photos[0], detector)
+        totals = []
+        for photo in photos:
+            totals += timings(lambda p=photo: prepare_network_input(p, detector), repeats)
+    print("\n| prepare_network_input (load + detect + crop + proxy), all photos | ms |")
+    print("|---|---|")
+    print(f"| median (best) | {ms(totals)} |")
+
+
 def bench_large_photo(photo: Path, repeats: int) -> None:
     """``load_image`` of a 6000 x 4000 JPEG (the demo photo upscaled), downscaled to 4096."""
     import tempfile
@@ -142,6 +161,7 @@ def main() -> None:
     bench_detection(photos, args.repeats)
     bench_crops(photos[-1], args.repeats)
     bench_large_photo(photos[-1], args.repeats)
+    bench_network_input(photos, args.repeats)
 
 
 if __name__ == "__main__":
