@@ -24,10 +24,13 @@ from hkpd.evaluation.metrics import (
     pve_t_sc_from_betas,
     sample_diversity,
 )
+from hkpd.evaluation.prediction_metrics import EvaluationTargets, evaluate_prediction
 
 __all__ = [
     "MILLIMETRES_PER_METRE",
     "MIN_OF_N_COUNTS",
+    "EvaluationTargets",
+    "evaluate_prediction",
     "joint_error_2d",
     "least_squares_scale_align",
     "min_of_n",

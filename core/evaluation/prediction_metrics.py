@@ -1,0 +1,150 @@
+"""All metrics for one batch of network predictions: the building block of ``hkpd-eval``.
+
+:func:`evaluate_prediction` poses the predicted mode body and ``num_samples`` bodies sampled from
+the predicted distributions, and returns per-example metrics (see :mod:`hkpd.evaluation.metrics`
+for the definitions). Targets that a dataset lacks (e.g. 3D joints for in-the-wild photos) are
+None, and the metrics that need them are left out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from hkpd.body.body_model import BodyModel
+from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
+from hkpd.evaluation.metrics import (
+    MIN_OF_N_COUNTS,
+    joint_error_2d,
+    min_of_n,
+    mpjpe,
+    mpjpe_procrustes,
+    mpjpe_scale_corrected,
+    pve_t_sc,
+    sample_diversity,
+)
+from hkpd.network.output import NetworkOutput
+
+PELVIS = 0
+SAMPLES_FOR_2D_ERROR = 10
+"""The paper's "2D Joint Err. Samples" uses 10 sampled bodies per image."""
+
+
+@dataclass
+class EvaluationTargets:
+    """Ground truth for a batch; any field may be None when the dataset lacks it.
+
+    Attributes:
+        joints3d: ``(B, 24, 3)`` SMPL-order joints, metres, in the camera frame (any frame
+            whose orientation matches the predicted ``global_orient`` works for MPJPE; -SC and
+            -PA are frame-independent).
+        betas: ``(B, K)`` shape coefficients, for PVE-T-SC.
+        keypoints2d: ``(B, 17, 2)`` COCO keypoints in crop pixels.
+        visible: ``(B, 17)`` bool, which ``keypoints2d`` are visible (needed with them).
+    """
+
+    joints3d: torch.Tensor | None = None
+    betas: torch.Tensor | None = None
+    keypoints2d: torch.Tensor | None = None
+    visible: torch.Tensor | None = None
+
+
+def _pose_bodies(body, betas, body_pose, global_orient):
+    posed = body(betas, body_pose, global_orient)
+    pelvis = posed.joints[:, PELVIS : PELVIS + 1]
+    return posed.joints - pelvis, posed.keypoints - pelvis
+
+
+@torch.no_grad()
+def evaluate_prediction(
+    output: NetworkOutput,
+    body: BodyModel,
+    targets: EvaluationTargets,
+    num_samples: int = 25,
+    crop_size: int = CROP_SIZE,
+    generator: torch.Generator | None = None,
+) -> dict[str, torch.Tensor]:
+    """Per-example metrics of a batch of predictions.
+
+    Args:
+        output: the network's prediction.
+        body: body model (same device and dtype).
+        targets: ground truth; metrics whose targets are None are skipped.
+        num_samples: S bodies sampled per example, for min-of-N (N in
+            :data:`MIN_OF_N_COUNTS` up to S), the samples' 2D error (first 10) and diversity.
+            0 skips every sample metric.
+        crop_size: pixel size of the crops ``keypoints2d`` refer to.
+        generator: optional random generator for the samples.
+
+    Returns:
+        ``{name: (B,)}``, 3D metrics in metres, 2D errors in pixels, with names
+        ``mpjpe``, ``mpjpe_sc``, ``mpjpe_pa``, ``pve_t_sc``, ``joint_error_2d_mode``,
+        ``joint_error_2d_samples``, ``{mpjpe,mpjpe_pa,pve_t_sc}_min_of_{N}``,
+        ``diversity_visible`` and ``diversity_invisible`` (3D COCO keypoint spread).
+    """
+    if targets.keypoints2d is not None and targets.visible is None:
+        raise ValueError("targets.keypoints2d needs targets.visible (use all-True if unknown)")
+    results: dict[str, torch.Tensor] = {}
+    pose = output.pose_distribution()
+    joints, keypoints = _pose_bodies(body, output.shape_mean, pose.mode, output.global_orient)
+    if targets.joints3d is not None:
+        results["mpjpe"] = mpjpe(joints, targets.joints3d)
+        results["mpjpe_sc"] = mpjpe_scale_corrected(joints, targets.joints3d)
+        results["mpjpe_pa"] = mpjpe_procrustes(joints, targets.joints3d)
+    target_tpose = None
+    if targets.betas is not None:
+        target_tpose = body.tpose(targets.betas)
+        results["pve_t_sc"] = pve_t_sc(body.tpose(output.shape_mean), target_tpose)
+
+    def to_pixels(points: torch.Tensor) -> torch.Tensor:
+        return ndc_to_pixels(weak_perspective_project(points, output.camera), crop_size)
+
+    if targets.keypoints2d is not None:
+        results["joint_error_2d_mode"] = joint_error_2d(
+            to_pixels(keypoints), targets.keypoints2d, targets.visible
+        )
+    if num_samples < 1:
+        return results
+
+    poses = pose.sample(num_samples, generator=generator)
+    noise = torch.randn(
+        (num_samples, *output.shape_mean.shape),
+        generator=generator,
+        dtype=output.shape_mean.dtype,
+        device=output.shape_mean.device,
+    )
+    betas = output.shape_mean + output.shape_std * noise
+    per_sample: dict[str, list[torch.Tensor]] = {"mpjpe": [], "mpjpe_pa": [], "pve_t_sc": []}
+    sample_keypoints = []
+    for index in range(num_samples):  # one sample per pass keeps the memory bounded
+        sample_joints, sample_kp = _pose_bodies(
+            body, betas[index], poses[index], output.global_orient
+        )
+        sample_keypoints.append(sample_kp)
+        if targets.joints3d is not None:
+            per_sample["mpjpe"].append(mpjpe(sample_joints, targets.joints3d))
+            per_sample["mpjpe_pa"].append(mpjpe_procrustes(sample_joints, targets.joints3d))
+        if target_tpose is not None:
+            per_sample["pve_t_sc"].append(pve_t_sc(body.tpose(betas[index]), target_tpose))
+    counts = [n for n in MIN_OF_N_COUNTS if n <= num_samples]
+    for name, values in per_sample.items():
+        if values:
+            for n, value in min_of_n(torch.stack(values), counts).items():
+                results[f"{name}_min_of_{n}"] = value
+    stacked = torch.stack(sample_keypoints)  # (S, B, 17, 3)
+    if targets.keypoints2d is not None:
+        first = stacked[: min(SAMPLES_FOR_2D_ERROR, num_samples)]
+        projected = torch.stack([to_pixels(points) for points in first])
+        results["joint_error_2d_samples"] = joint_error_2d(
+            projected, targets.keypoints2d, targets.visible
+        )
+    visible = (
+        targets.visible.bool()
+        if targets.visible is not None
+        else torch.ones(stacked.shape[1:3], dtype=torch.bool, device=stacked.device)
+    )
+    diversity = sample_diversity(stacked, visible)
+    results["diversity_visible"] = diversity["visible"]
+    results["diversity_invisible"] = diversity["invisible"]
+    return results

@@ -1,0 +1,76 @@
+"""Tests for hkpd.evaluation.evaluate_prediction on predictions built from the ground truth."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+from test_network_helpers import make_training_batch
+
+from hkpd.body import BodyModel
+from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
+from hkpd.evaluation import EvaluationTargets, evaluate_prediction
+from hkpd.network import NetworkOutput
+from hkpd.training.losses import pelvis_relative_body
+
+
+@pytest.fixture(scope="module")
+def body() -> BodyModel:
+    return BodyModel()
+
+
+@pytest.fixture(scope="module")
+def case(body):
+    batch = make_training_batch(body, 3, 32, seed=7)
+    camera = torch.tensor([[1.1, 0.0, 0.1]]).expand(3, 3)
+    keypoints, _ = pelvis_relative_body(body, batch.betas, batch.body_pose, batch.global_orient)
+    pixels = ndc_to_pixels(weak_perspective_project(keypoints, camera))
+    targets = EvaluationTargets(batch.joints3d, batch.betas, pixels, batch.visible)
+    return batch, camera, targets
+
+
+def prediction(batch, camera, concentration: float, shape_std: float) -> NetworkOutput:
+    return NetworkOutput(
+        F=concentration * batch.body_pose,
+        shape_mean=batch.betas,
+        shape_std=torch.full_like(batch.betas, shape_std),
+        global_orient=batch.global_orient,
+        camera=camera,
+    )
+
+
+def test_perfect_mode_gives_zero_errors(body, case):
+    batch, camera, targets = case
+    output = prediction(batch, camera, 1e4, 1e-4)
+    metrics = evaluate_prediction(output, body, targets, num_samples=5)
+    for name in ("mpjpe", "mpjpe_sc", "mpjpe_pa", "pve_t_sc"):
+        assert metrics[name].abs().max() < 1e-4, name
+    assert metrics["joint_error_2d_mode"].max() < 1e-3
+    assert metrics["joint_error_2d_samples"].max() < 1.0  # px; very concentrated samples
+    assert metrics["diversity_visible"].max() < 0.02  # metres; angle spread ~ 0.01 rad per joint
+    assert set(metrics) >= {"mpjpe_min_of_1", "mpjpe_min_of_5", "pve_t_sc_min_of_5"}
+    assert "mpjpe_min_of_10" not in metrics  # only 5 samples
+
+
+def test_broad_distributions_are_diverse_and_min_of_n_decreases(body, case):
+    batch, camera, targets = case
+    output = prediction(batch, camera, 2.0, 0.5)
+    generator = torch.Generator().manual_seed(0)
+    metrics = evaluate_prediction(output, body, targets, num_samples=10, generator=generator)
+    assert metrics["diversity_visible"].min() > 0.05
+    for name in ("mpjpe", "mpjpe_pa", "pve_t_sc"):
+        assert (metrics[f"{name}_min_of_5"] <= metrics[f"{name}_min_of_1"]).all()
+        assert (metrics[f"{name}_min_of_10"] <= metrics[f"{name}_min_of_5"]).all()
+    assert (metrics["joint_error_2d_samples"] > metrics["joint_error_2d_mode"]).all()
+
+
+def test_missing_targets_skip_their_metrics(body, case):
+    batch, camera, targets = case
+    output = prediction(batch, camera, 50.0, 0.1)
+    only_2d = EvaluationTargets(keypoints2d=targets.keypoints2d, visible=targets.visible)
+    metrics = evaluate_prediction(output, body, only_2d, num_samples=0)
+    assert set(metrics) == {"joint_error_2d_mode"}
+    assert not any(math.isnan(v) for v in metrics["joint_error_2d_mode"].tolist())
+    with pytest.raises(ValueError, match="visible"):
+        evaluate_prediction(output, body, EvaluationTargets(keypoints2d=targets.keypoints2d))
