@@ -31,6 +31,7 @@ import numpy as np
 import torch
 
 from hkpd.camera_conventions import CROP_SIZE
+from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.pixel_maps import Points, scale_and_shift
 from hkpd.proxy import CROP_MARGIN, square_box_around_keypoints
 
@@ -182,7 +183,7 @@ class CropTransform:
         return np.array([[scale, 0.0, shift[0]], [0.0, scale, shift[1]]])
 
     def crop_image(
-        self, image: np.ndarray, image_scale: tuple[float, float] = (1.0, 1.0)
+        self, image: np.ndarray | LoadedImage, image_scale: tuple[float, float] = (1.0, 1.0)
     ) -> np.ndarray:
         """Resample the box into a ``(size, size, C)`` crop; outside the photo is black.
 
@@ -192,12 +193,16 @@ class CropTransform:
 
         Args:
             image: ``(H, W, C)`` or ``(H, W)`` uint8 pixels. Either the original photo, or a
-                downscaled working copy (``LoadedImage.pixels``) with ``image_scale`` set.
-            image_scale: per-axis ``image / original`` size ratio (``LoadedImage.scale``).
+                downscaled working copy (``LoadedImage.pixels``) with ``image_scale`` set; or
+                a :class:`LoadedImage`, whose own scale is then used.
+            image_scale: per-axis ``image / original`` size ratio (``LoadedImage.scale``);
+                ignored for a :class:`LoadedImage`.
 
         Returns:
             ``(size, size, C)`` (or ``(size, size)``) of ``image``'s dtype.
         """
+        if isinstance(image, LoadedImage):
+            image, image_scale = image.pixels, image.scale
         if image.ndim not in (2, 3) or image.shape[0] == 0 or image.shape[1] == 0:
             raise ValueError(f"expected an (H, W[, C]) image, got shape {image.shape}")
         # Affine from `image` pixels to crop pixels: original = (p + 0.5) / s - 0.5, then crop.
