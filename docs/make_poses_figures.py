@@ -24,7 +24,7 @@ from make_body_figures import label, render
 from hkpd.body import BodyModel
 from hkpd.poses.bvh import load_bvh
 from hkpd.poses.bvh_kinematics import forward_kinematics, local_rotations
-from hkpd.poses.retarget import retarget
+from hkpd.poses.retargeting import retarget
 from hkpd.poses.skeleton_flavours import detect_flavour
 
 OUT = Path(__file__).resolve().parent / "figures"

@@ -12,7 +12,7 @@ from test_poses_bvh import max_flavour_motion, max_flavour_skeleton
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
 from hkpd.poses.bvh import BvhMotion, load_bvh
 from hkpd.poses.bvh_kinematics import axis_rotation
-from hkpd.poses.retarget import retarget, rotation_between
+from hkpd.poses.retargeting import retarget, rotation_between
 from hkpd.poses.skeleton_flavours import FLAVOURS, MAX, detect_flavour
 
 CMU = Path("/work/shared/data/cmu_mocap")

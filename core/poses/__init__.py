@@ -7,7 +7,7 @@ from hkpd.poses.bank_builder import BuildSummary, build_pose_bank
 from hkpd.poses.bvh import BvhMotion, BvhParseError, BvhSkeleton, load_bvh, parse_bvh
 from hkpd.poses.mirror import mirror_pose
 from hkpd.poses.procedural import JOINT_LIMITS, JointLimit, ProceduralPosePrior
-from hkpd.poses.retarget import RetargetedMotion, retarget
+from hkpd.poses.retargeting import RetargetedMotion, retarget
 from hkpd.poses.skeleton_flavours import FLAVOURS, SkeletonFlavour, detect_flavour
 from hkpd.poses.source import PoseSource
 from hkpd.poses.subject_split import assign_splits, subject_of

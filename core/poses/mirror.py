@@ -6,7 +6,8 @@ import torch
 
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
 
-_REFLECTION = torch.diag(torch.tensor([-1.0, 1.0, 1.0]))
+# M @ R @ M with M = diag(-1, 1, 1) flips the sign of the entries (i, j) with m_i * m_j = -1.
+_REFLECTION_SIGNS = torch.tensor([[1.0, -1.0, -1.0], [-1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]])
 
 
 def _swapped_name(name: str) -> str:
@@ -33,8 +34,7 @@ def reflect_rotations(rotations: torch.Tensor) -> torch.Tensor:
         ``(..., 3, 3)`` the mirror-image rotations (a rotation about axis (x, y, z) by angle a
         becomes a rotation about (x, -y, -z) by a).
     """
-    reflection = _REFLECTION.to(dtype=rotations.dtype, device=rotations.device)
-    return reflection @ rotations @ reflection
+    return rotations * _REFLECTION_SIGNS.to(dtype=rotations.dtype, device=rotations.device)
 
 
 def mirror_pose(

@@ -168,6 +168,7 @@ def retarget(motion: BvhMotion, flavour: SkeletonFlavour | None = None) -> Retar
     global_rotations, _ = forward_kinematics(motion.skeleton, rotations)
     alignments = rest_alignments(motion, flavour)
     axes = torch.tensor(flavour.bvh_to_smpl_axes, dtype=torch.float64)
+    same_axes = bool(torch.equal(axes, torch.eye(3, dtype=torch.float64)))
 
     smpl_globals: list[torch.Tensor] = []
     for joint, name in enumerate(SMPL_JOINT_NAMES):
@@ -175,14 +176,23 @@ def retarget(motion: BvhMotion, flavour: SkeletonFlavour | None = None) -> Retar
         if source is None:
             smpl_globals.append(smpl_globals[SMPL_PARENTS[joint]])
             continue
-        rotation = _driver_rotation(global_rotations, motion, source) @ alignments[joint]
-        smpl_globals.append(axes @ rotation @ axes.T)
-    stacked = torch.stack(smpl_globals, dim=1)
-    parents = torch.tensor(SMPL_PARENTS[1:])
-    body_pose = stacked[:, parents].transpose(-1, -2) @ stacked[:, 1:]
+        driver = _driver_rotation(global_rotations, motion, source)
+        # Expanding the fixed matrix to the batch keeps torch on its fast small-matrix batched
+        # path (a broadcast (F, 3, 3) @ (3, 3) goes through a general, much slower GEMM).
+        rotation = driver @ alignments[joint].expand_as(driver)
+        if not same_axes:
+            rotation = axes.expand_as(rotation) @ rotation @ axes.T.expand_as(rotation)
+        smpl_globals.append(rotation)
+    body_pose = torch.stack(
+        [
+            smpl_globals[SMPL_PARENTS[joint]].transpose(-1, -2) @ smpl_globals[joint]
+            for joint in range(1, 24)
+        ],
+        dim=1,
+    )
     return RetargetedMotion(
         body_pose=body_pose,
-        global_orient=stacked[:, 0],
+        global_orient=smpl_globals[0],
         flavour=flavour.name,
         name=motion.name,
     )
