@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from hkpd.kinematic_tree import depth_levels
 from hkpd.poses.bvh import BvhMotion, BvhSkeleton
 
 
@@ -47,18 +48,49 @@ def local_rotations(motion: BvhMotion) -> torch.Tensor:
         ``(F, J, 3, 3)`` float64; identity for end sites and joints without rotation channels.
     """
     skeleton = motion.skeleton
-    frames = torch.from_numpy(motion.frames)
-    num_frames = frames.shape[0]
-    rotations = torch.eye(3, dtype=torch.float64).repeat(num_frames, skeleton.num_joints, 1, 1)
+    num_frames = motion.frames.shape[0]
+    # Column, axis and position-within-joint of every rotation channel.
+    columns: list[int] = []
+    axes: list[int] = []
+    joints: list[int] = []
+    slots: list[int] = []
     column = 0
     for joint, joint_channels in enumerate(skeleton.channels):
+        slot = 0
         for channel in joint_channels:
             if channel.endswith("rotation"):
-                rotations[:, joint] = rotations[:, joint] @ axis_rotation(
-                    channel[0], frames[:, column]
-                )
+                columns.append(column)
+                axes.append("XYZ".index(channel[0]))
+                joints.append(joint)
+                slots.append(slot)
+                slot += 1
             column += 1
-    return rotations
+    rotations = np.broadcast_to(np.eye(3), (num_frames, skeleton.num_joints, 3, 3)).copy()
+    if not columns:
+        return torch.from_numpy(rotations)
+    radians = np.deg2rad(motion.frames[:, columns])
+    cos, sin = np.cos(radians), np.sin(radians)
+    elementary = np.zeros((num_frames, len(columns), 3, 3))
+    for axis in range(3):
+        picked = np.asarray(axes) == axis
+        first, second = [a for a in range(3) if a != axis]
+        # Right-handed rotation about `axis`: the plane (first, second) turns counter-clockwise,
+        # with the sine's sign flipped for Y (whose plane is (Z, X)).
+        sign = -1.0 if axis == 1 else 1.0
+        block = elementary[:, picked]
+        block[..., axis, axis] = 1.0
+        block[..., first, first] = cos[:, picked]
+        block[..., second, second] = cos[:, picked]
+        block[..., first, second] = -sign * sin[:, picked]
+        block[..., second, first] = sign * sin[:, picked]
+        elementary[:, picked] = block
+    # Multiply each joint's channels in file order, all joints of one slot at a time.
+    joints_array, slots_array = np.asarray(joints), np.asarray(slots)
+    for slot in range(int(slots_array.max()) + 1):
+        chosen = np.nonzero(slots_array == slot)[0]
+        targets = joints_array[chosen]
+        rotations[:, targets] = rotations[:, targets] @ elementary[:, chosen]
+    return torch.from_numpy(rotations)
 
 
 def joint_translations(motion: BvhMotion) -> torch.Tensor:
@@ -94,21 +126,28 @@ def forward_kinematics(
 
     Returns:
         ``global_rotations (F, J, 3, 3)`` (joint frame to world) and ``positions (F, J, 3)`` in
-        the file's length unit.
+        the file's length unit, same dtype as ``rotations``.
     """
+    local = rotations.detach().cpu().numpy()
     if translations is None:
-        offsets = torch.from_numpy(np.asarray(skeleton.offsets)).to(rotations.dtype)
-        translations = offsets.expand(rotations.shape[0], -1, -1)
-    global_rotations: list[torch.Tensor] = []
-    positions: list[torch.Tensor] = []
-    for joint, parent in enumerate(skeleton.parents):
-        if parent < 0:
-            global_rotations.append(rotations[:, joint])
-            positions.append(translations[:, joint])
-        else:
-            parent_rotation = global_rotations[parent]
-            global_rotations.append(parent_rotation @ rotations[:, joint])
-            positions.append(
-                positions[parent] + (parent_rotation @ translations[:, joint, :, None])[..., 0]
-            )
-    return torch.stack(global_rotations, dim=1), torch.stack(positions, dim=1)
+        offsets = np.broadcast_to(skeleton.offsets, (local.shape[0], *skeleton.offsets.shape))
+    else:
+        offsets = translations.detach().cpu().numpy()
+    global_rotations = np.empty_like(local)
+    positions = np.empty((*local.shape[:2], 3), dtype=local.dtype)
+    # Whole tree levels at once (numpy's stacked 3x3 products are much faster than torch's).
+    for level in depth_levels(skeleton.parents):
+        level_parents = [skeleton.parents[j] for j in level]
+        if level_parents[0] < 0:
+            global_rotations[:, level] = local[:, level]
+            positions[:, level] = offsets[:, level]
+            continue
+        parent_rotations = global_rotations[:, level_parents]
+        global_rotations[:, level] = parent_rotations @ local[:, level]
+        positions[:, level] = (
+            positions[:, level_parents] + (parent_rotations @ offsets[:, level, :, None])[..., 0]
+        )
+    return (
+        torch.from_numpy(global_rotations).to(rotations.dtype),
+        torch.from_numpy(positions).to(rotations.dtype),
+    )
