@@ -106,6 +106,11 @@ class ProceduralPosePrior:
         self._low = torch.tensor([[r[0] for r in lim.ranges] for lim in self.limits.values()])
         self._high = torch.tensor([[r[1] for r in lim.ranges] for lim in self.limits.values()])
         self._neutral = torch.tensor([lim.neutral for lim in self.limits.values()])
+        self._joints_by_order: dict[str, list[int]] = {}
+        for joint, limit in enumerate(self.limits.values()):
+            self._joints_by_order.setdefault(limit.order, []).append(joint)
+        grouped_joints = [j for joints in self._joints_by_order.values() for j in joints]
+        self._ungroup = torch.argsort(torch.tensor(grouped_joints))
         if ((self._neutral < self._low) | (self._neutral > self._high)).any():
             raise ValueError("every neutral angle must lie inside its range")
 
@@ -132,9 +137,16 @@ class ProceduralPosePrior:
         if count < 0:
             raise ValueError(f"count must be >= 0, got {count}")
         angles = self.sample_angles(count, generator)
-        body_pose = torch.empty(count, 23, 3, 3)
-        for joint, limit in enumerate(self.limits.values()):
-            body_pose[:, joint] = roma.euler_to_rotmat(limit.order, angles[:, joint], degrees=True)
+        # One conversion per Euler order, then back to joint order (index_select is much
+        # faster than assigning into a list of joint indices).
+        grouped = torch.cat(
+            [
+                roma.euler_to_rotmat(order, angles[:, joints], degrees=True)
+                for order, joints in self._joints_by_order.items()
+            ],
+            dim=1,
+        )
+        body_pose = grouped.index_select(1, self._ungroup)
         yaw = 2 * math.pi * torch.rand(count, generator=generator)
         tilt_direction = 2 * math.pi * torch.rand(count, generator=generator)
         tilt = torch.randn(count, generator=generator) * math.radians(self.max_tilt_deg) / 2
