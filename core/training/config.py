@@ -27,10 +27,12 @@ class TrainConfig:
         batch_size: examples per step.
         image_size: proxy side in pixels (256 as in the paper; smaller for quick tests).
         pose_head: ``"hierarchical"`` (the paper's f_hier) or ``"independent"`` (f_indep).
-        backbone_width: ResNet-18 width multiplier (1.0 is the paper's; 0.5 for CPU).
+        backbone_base_width: channels of the first ResNet-18 stage (64 is the paper's; 32 or 16
+            for CPU training).
         learning_rate: Adam learning rate.
         num_samples: K, bodies sampled per example for the 2D samples loss.
-        samples_loss_from: step at which the 2D loss on samples starts (stage 2); -1 never.
+        samples_loss_from: step at which the 2D loss on samples starts (the paper's stage 2);
+            -1 never (the ablation "without samples loss").
         joints3d_loss_from: step at which the 3D joint loss starts (stage 3); -1 never.
         device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
         amp: mixed precision on CUDA (ignored on CPU).
@@ -49,7 +51,7 @@ class TrainConfig:
     batch_size: int = 32
     image_size: int = 256
     pose_head: str = "hierarchical"
-    backbone_width: float = 1.0
+    backbone_base_width: int = 64
     learning_rate: float = 1e-4
     num_samples: int = 8
     samples_loss_from: int = 2_000

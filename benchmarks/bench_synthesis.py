@@ -1,0 +1,95 @@
+"""Throughput of the synthetic data generator (samples/s), with a per-stage breakdown.
+
+Usage: python benchmarks/bench_synthesis.py [--batch-sizes 16 32 64] [--image-size 256]
+       [--poses poses.npz] [--device cpu] [--threads 2] [--repeats 5]
+
+Prints a markdown table; results are recorded in docs/benchmarks.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import statistics
+import time
+
+import numpy as np
+import torch
+
+from hkpd.poses import PoseBank, ProceduralPosePrior
+from hkpd.proxy import build_proxy_batch
+from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator, batch_seed
+
+
+def timed(function, repeats: int, synchronise) -> list[float]:
+    times = []
+    for _ in range(repeats):
+        synchronise()
+        start = time.perf_counter()
+        function()
+        synchronise()
+        times.append(time.perf_counter() - start)
+    return times
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--batch-sizes", type=int, nargs="+", default=[16, 32, 64])
+    parser.add_argument("--image-size", type=int, default=256)
+    parser.add_argument("--poses", help="pose bank .npz (default: procedural prior)")
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    device = torch.device(args.device)
+    sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
+    poses = PoseBank.load(args.poses, "train") if args.poses else ProceduralPosePrior()
+    generator = SyntheticDataGenerator(
+        poses, SyntheticDataConfig(image_size=args.image_size), device=device
+    )
+    generator.generate(4, 0)  # warm up
+    print(f"machine: {platform.processor() or platform.machine()}, torch "
+          f"{torch.__version__}, threads {torch.get_num_threads()}, device {device}, "
+          f"{args.image_size} px, poses {'bank' if args.poses else 'procedural'}")  # fmt: skip
+    print()
+    print("| B | whole batch: median (best) ms | samples/s (median) | body model ms | render ms "
+          "| proxy (Canny + heatmaps) ms |")  # fmt: skip
+    print("|---|---|---|---|---|---|")
+    for size in args.batch_sizes:
+        seeds = iter(range(10_000))
+        whole = timed(lambda s=size: generator.generate(s, batch_seed(1, next(seeds))),
+                      args.repeats, sync)  # fmt: skip
+        rendered = generator.generate(size, 123)
+        batch = rendered.batch
+        body_times = timed(
+            lambda b=batch: generator.body(b.betas, b.body_pose, b.global_orient), args.repeats,
+            sync,
+        )  # fmt: skip
+        vertices = generator.body(batch.betas, batch.body_pose, batch.global_orient).vertices
+        vertices = vertices + torch.tensor([0.0, 0.0, 3.0], device=device)
+        colours = generator.textures.sample(size, torch.Generator().manual_seed(0), device)
+        from hkpd.rendering import sample_lighting
+
+        lighting = sample_lighting(size, torch.Generator().manual_seed(0), device)
+        focal = torch.full((size,), 300.0 * args.image_size / 256, device=device)
+        render_times = timed(
+            lambda: generator.renderer.render(vertices, focal, colours, lighting), args.repeats,
+            sync,
+        )  # fmt: skip
+        images = np.ascontiguousarray(rendered.images)
+        proxy_times = timed(
+            lambda: build_proxy_batch(images, batch.keypoints2d, batch.visible, device),
+            args.repeats, sync,
+        )  # fmt: skip
+        median = statistics.median(whole)
+        print(
+            f"| {size} | {median * 1e3:.0f} ({min(whole) * 1e3:.0f}) | {size / median:.0f} | "
+            f"{statistics.median(body_times) * 1e3:.0f} | "
+            f"{statistics.median(render_times) * 1e3:.0f} | "
+            f"{statistics.median(proxy_times) * 1e3:.0f} |"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,295 @@
+"""The training loop behind ``hkpd-train``.
+
+One step: take the next synthetic batch (made ahead in a background thread), predict the
+distributions, compute the scheduled losses (:mod:`hkpd.training.losses`), and take an Adam
+step. Every ``log_every`` steps a row goes to ``train.csv``; every ``val_every`` steps the
+network is evaluated on a fixed synthetic validation set (``val.csv``) and the curves PNG is
+redrawn; checkpoints go to ``last.pt`` (atomically), which ``--resume`` continues from exactly:
+the data stream is indexed by step, so a resumed run sees the batches it would have seen.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import torch
+from tqdm import tqdm
+
+from hkpd.body import BodyModel
+from hkpd.network import DistributionNetwork
+from hkpd.network.config import NetworkConfig
+from hkpd.poses import PoseBank, PoseSource, ProceduralPosePrior
+from hkpd.synthesis.generator import (
+    SyntheticBatches,
+    SyntheticDataConfig,
+    SyntheticDataGenerator,
+    fixed_test_set,
+)
+from hkpd.training.checkpoint import read_checkpoint, save_checkpoint
+from hkpd.training.config import TrainConfig
+from hkpd.training.curves import plot_training_curves
+from hkpd.training.losses import compute_losses
+from hkpd.training.prefetch import Prefetcher
+from hkpd.training.schedule import LossSchedule, LossStage, LossWeights
+
+CHECKPOINT_NAME = "last.pt"
+VALIDATION_SEED = 7
+
+
+@dataclass
+class TrainingResult:
+    """What a finished (or interrupted) run leaves behind."""
+
+    checkpoint: Path
+    steps: int
+    samples_seen: int
+    seconds: float
+    last_validation: dict[str, float]
+    interrupted: bool = False
+
+
+def resolve_device(name: str) -> torch.device:
+    """``auto`` -> CUDA when available, else CPU; ``cuda`` without a GPU is an error."""
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    device = torch.device(name)
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError("--device cuda was asked for, but torch sees no CUDA GPU; use auto/cpu")
+    return device
+
+
+def build_schedule(config: TrainConfig, weights: LossWeights | None = None) -> LossSchedule:
+    """The paper's staged losses with the config's boundaries (-1 switches a stage off)."""
+    full = weights or LossWeights()
+    events = []
+    if config.samples_loss_from >= 0:
+        events.append((config.samples_loss_from, "joints2d_samples"))
+    if config.joints3d_loss_from >= 0:
+        events.append((config.joints3d_loss_from, "joints3d_mode"))
+    current = replace(full, joints2d_samples=0.0, joints3d_mode=0.0)
+    stages = [LossStage(0, current, "nll+global+2d-mode")]
+    for start, term in sorted(events):
+        current = replace(current, **{term: getattr(full, term)})
+        label = "+2d-samples" if term == "joints2d_samples" else "+3d-joints"
+        if start == 0:
+            stages[0] = LossStage(0, current, stages[0].name + label)
+        elif start == stages[-1].start_step:
+            stages[-1] = LossStage(start, current, stages[-1].name + label)
+        else:
+            stages.append(LossStage(start, current, label))
+    return LossSchedule(tuple(stages))
+
+
+def pose_source_for(poses: Path | None, split: str) -> PoseSource:
+    """A pose bank split, or the procedural prior when no bank is given."""
+    if poses is None:
+        return ProceduralPosePrior()
+    if not Path(poses).is_file():
+        raise FileNotFoundError(
+            f"pose bank {poses} does not exist; build one with `hkpd-poses build BVH_DIR --out "
+            f"{poses}` or leave --poses out to train on the procedural pose prior"
+        )
+    return PoseBank.load(poses, split=split)
+
+
+def _check_paths(config: TrainConfig) -> None:
+    if config.backgrounds is not None and not Path(config.backgrounds).is_dir():
+        raise FileNotFoundError(f"background folder {config.backgrounds} does not exist")
+
+
+def _append_csv(path: Path, row: dict[str, float]) -> None:
+    new = not path.exists()
+    with path.open("a", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(row))
+        if new:
+            writer.writeheader()
+        writer.writerow(row)
+
+
+def _truncate_csv(path: Path, last_step: int) -> None:
+    """Drop rows after ``last_step`` (a resumed run rewrites them)."""
+    if not path.exists():
+        return
+    with path.open() as handle:
+        rows = list(csv.DictReader(handle))
+    if not rows:
+        return
+    kept = [row for row in rows if float(row["step"]) <= last_step]
+    with path.open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(kept)
+
+
+def train(config: TrainConfig, resume: bool = False, show_progress: bool = True) -> TrainingResult:
+    """Run (or resume) a training run as configured; see the module docstring.
+
+    Raises:
+        FileNotFoundError: a data path (pose bank, backgrounds, resume checkpoint) is missing.
+    """
+    from hkpd.evaluation.synthetic import evaluate_batches
+
+    _check_paths(config)
+    device = resolve_device(config.device)
+    out = Path(config.out)
+    checkpoint_path = out / CHECKPOINT_NAME
+    if resume and not checkpoint_path.is_file():
+        raise FileNotFoundError(f"--resume: no checkpoint at {checkpoint_path}")
+    train_poses = pose_source_for(config.poses, "train")
+    val_poses = pose_source_for(config.poses, "val")
+    out.mkdir(parents=True, exist_ok=True)
+    config.save(out / "config.json")
+
+    torch.manual_seed(config.seed)
+    body = BodyModel().to(device)
+    data_config = SyntheticDataConfig(image_size=config.image_size)
+    generator = SyntheticDataGenerator(
+        train_poses, data_config, device=device, background_dir=config.backgrounds, body=body
+    )
+    network_config = NetworkConfig(
+        backbone_base_width=config.backbone_base_width,
+        pose_head=config.pose_head,
+        image_size=config.image_size,
+    )
+    network = DistributionNetwork(network_config).to(device)
+    optimizer = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
+    step, samples_seen = 0, 0
+    if resume:
+        payload = read_checkpoint(checkpoint_path, map_location=device)
+        network.load_state_dict(payload["model"])
+        optimizer.load_state_dict(payload["optimizer"])
+        step, samples_seen = int(payload["step"]), int(payload["samples_seen"])
+        for log in ("train.csv", "val.csv"):
+            _truncate_csv(out / log, step)
+    schedule = build_schedule(config)
+    use_amp = config.amp and device.type == "cuda"
+
+    def save() -> Path:
+        return save_checkpoint(
+            checkpoint_path,
+            network,
+            network_config.to_dict(),
+            step,
+            config.to_dict(),
+            samples_seen,
+            optimizer,
+        )
+
+    validation_set = None
+    last_validation: dict[str, float] = {}
+
+    def validate() -> dict[str, float]:
+        nonlocal validation_set
+        if validation_set is None:
+            val_generator = SyntheticDataGenerator(
+                val_poses, data_config, device=device, background_dir=config.backgrounds, body=body
+            )
+            validation_set = fixed_test_set(
+                val_generator, config.val_size, VALIDATION_SEED, min(config.batch_size, 50)
+            )
+        network.eval()
+        metrics = evaluate_batches(network, validation_set, body)
+        network.train()
+        _append_csv(out / "val.csv", {"step": step, **metrics})
+        plot_training_curves(out / "train.csv", out / "val.csv", out / "curves.png")
+        return metrics
+
+    stream = Prefetcher(SyntheticBatches(generator, config.batch_size, config.seed, start=step))
+    started = time.perf_counter()
+    window_start, window_samples = started, 0
+    interrupted = False
+    progress = tqdm(
+        total=config.steps, initial=step, disable=not show_progress, unit="step", dynamic_ncols=True
+    )
+    network.train()
+    try:
+        while step < config.steps:
+            batch = next(stream)
+            weights = schedule.weights_at(step)
+            with torch.autocast(device.type, dtype=torch.bfloat16, enabled=use_amp):
+                output = network(batch.proxy)
+            output = type(output)(**{k: v.float() for k, v in vars(output).items()})
+            terms = compute_losses(output, batch, body, weights, config.num_samples)
+            optimizer.zero_grad(set_to_none=True)
+            terms["total"].backward()
+            torch.nn.utils.clip_grad_norm_(network.parameters(), 10.0)
+            optimizer.step()
+            step += 1
+            samples_seen += batch.batch_size
+            window_samples += batch.batch_size
+            total = float(terms["total"].detach())
+            if not math.isfinite(total):
+                save()
+                raise FloatingPointError(
+                    f"the loss became {total} at step {step}; the last checkpoint is kept at "
+                    f"{checkpoint_path}. Try a lower --learning-rate."
+                )
+            progress.set_postfix(loss=f"{total:.3f}", stage=schedule.stage_at(step - 1).name)
+            progress.update(1)
+            if step % config.log_every == 0 or step == config.steps:
+                now = time.perf_counter()
+                rate = window_samples / max(now - window_start, 1e-9)
+                window_start, window_samples = now, 0
+                row = {"step": step, "seconds": round(now - started, 2),
+                       "samples_per_second": round(rate, 2)}  # fmt: skip
+                row |= {name: float(value.detach()) for name, value in terms.items()}
+                _append_csv(out / "train.csv", _complete_row(row))
+            if config.val_every and step % config.val_every == 0 and step < config.steps:
+                last_validation = validate()
+                progress.write(f"step {step}: " + _format_metrics(last_validation))
+            if step % config.checkpoint_every == 0:
+                save()
+    except KeyboardInterrupt:
+        interrupted = True
+        progress.write(f"interrupted at step {step}; saving {checkpoint_path}")
+    finally:
+        progress.close()
+        stream.close()
+    save()
+    if not interrupted:
+        last_validation = validate()
+        print(f"final (step {step}): " + _format_metrics(last_validation))
+    plot_training_curves(out / "train.csv", out / "val.csv", out / "curves.png")
+    return TrainingResult(
+        checkpoint_path, step, samples_seen, time.perf_counter() - started, last_validation,
+        interrupted,
+    )  # fmt: skip
+
+
+_LOG_TERMS = (
+    "shape_nll",
+    "pose_nll",
+    "global_rotation",
+    "joints2d_mode",
+    "joints2d_samples",
+    "joints3d_mode",
+    "total",
+)
+
+
+def _complete_row(row: dict[str, float]) -> dict[str, float]:
+    """Every loss column in a fixed order (inactive terms empty), so CSV columns never shift."""
+    fixed = {key: row[key] for key in ("step", "seconds", "samples_per_second")}
+    return fixed | {name: row.get(name, "") for name in _LOG_TERMS}
+
+
+HEADLINE_METRICS = (
+    "mpjpe_sc",
+    "mpjpe_pa",
+    "pve_t_sc",
+    "joint_error_2d_mode",
+    "joint_error_2d_samples",
+)
+
+
+def _format_metrics(metrics: dict[str, float]) -> str:
+    """The headline metrics in one line (all of them are in val.csv)."""
+    units = {"joint_error_2d_mode": "px", "joint_error_2d_samples": "px"}
+    return ", ".join(
+        f"{key} {metrics[key]:.1f} {units.get(key, 'mm')}" for key in HEADLINE_METRICS
+        if key in metrics
+    )  # fmt: skip

@@ -1,0 +1,86 @@
+"""hkpd-train end to end: a tiny CPU run learns, logs, checkpoints and resumes."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pytest
+import torch
+
+from hkpd.network import DistributionNetwork
+from hkpd.training.checkpoint import CheckpointError, load_network, read_checkpoint
+from hkpd.training.cli import main as train_main
+from hkpd.training.config import TrainConfig
+from hkpd.training.loop import build_schedule, train
+
+TINY = {
+    "batch_size": 8,
+    "image_size": 64,
+    "backbone_base_width": 16,
+    "samples_loss_from": -1,
+    "joints3d_loss_from": -1,
+    "learning_rate": 1e-3,
+    "num_samples": 2,
+    "log_every": 5,
+    "val_every": 0,
+    "val_size": 8,
+    "checkpoint_every": 20,
+}
+
+
+def rows(path: Path) -> list[dict[str, str]]:
+    with path.open() as handle:
+        return list(csv.DictReader(handle))
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory) -> tuple[TrainConfig, object]:
+    config = TrainConfig(out=tmp_path_factory.mktemp("run"), steps=40, **TINY)
+    return config, train(config, show_progress=False)
+
+
+def test_tiny_run_lowers_the_loss(run) -> None:
+    config, result = run
+    assert result.steps == 40 and result.samples_seen == 320
+    log = rows(config.out / "train.csv")
+    assert [int(r["step"]) for r in log] == list(range(5, 41, 5))
+    first, last = log[0], log[-3:]
+    for term in ("joints2d_mode", "pose_nll"):
+        assert sum(float(r[term]) for r in last) / 3 < float(first[term]), term
+    assert (config.out / "curves.png").stat().st_size > 10_000
+    assert "mpjpe_sc" in rows(config.out / "val.csv")[-1]
+
+
+def test_checkpoint_loads_and_resume_continues(run) -> None:
+    config, result = run
+    network, payload = load_network(result.checkpoint)
+    assert isinstance(network, DistributionNetwork) and payload["step"] == 40
+    assert network(torch.zeros(1, 18, 64, 64)).F.shape == (1, 23, 3, 3)
+    resumed = train(TrainConfig(**{**vars(config), "steps": 50}), resume=True, show_progress=False)
+    assert resumed.steps == 50 and resumed.samples_seen == 400
+    steps = [int(r["step"]) for r in rows(config.out / "train.csv")]
+    assert steps == list(range(5, 51, 5))  # no duplicated or missing rows
+
+
+def test_bad_checkpoint_and_missing_paths(tmp_path, capsys) -> None:
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"not a checkpoint")
+    with pytest.raises(CheckpointError, match="not a readable checkpoint"):
+        read_checkpoint(junk)
+    code = train_main(["--out", str(tmp_path / "r"), "--poses", str(tmp_path / "none.npz")])
+    assert code == 2
+    assert "hkpd-poses build" in capsys.readouterr().err
+
+
+def test_schedule_stages_follow_the_config() -> None:
+    schedule = build_schedule(TrainConfig(samples_loss_from=10, joints3d_loss_from=20))
+    assert (
+        schedule.weights_at(0).joints2d_samples == 0 and schedule.weights_at(0).joints3d_mode == 0
+    )
+    assert (
+        schedule.weights_at(10).joints2d_samples > 0 and schedule.weights_at(10).joints3d_mode == 0
+    )
+    assert schedule.weights_at(25).joints3d_mode > 0
+    never = build_schedule(TrainConfig(samples_loss_from=-1, joints3d_loss_from=-1))
+    assert never.weights_at(10**6).joints2d_samples == 0
