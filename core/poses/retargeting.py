@@ -7,8 +7,8 @@ Method (per frame, per SMPL joint j with a source in the flavour's table):
 2. The two skeletons' rest poses differ (the ``max``/``asf`` rests hang the arms and splay the
    legs; SMPL's rest is a T-pose). A fixed rest alignment ``A_j`` (the smallest rotation taking
    SMPL's rest bone direction onto the BVH's rest bone direction, both in the BVH world) makes
-   ``G @ A_j`` point SMPL's bone where the BVH bone points. Joints without a bone of their own
-   (root, SMPL leaves) reuse their parent's alignment.
+   ``G @ A_j`` point SMPL's bone where the BVH bone points. Joints without a table bone
+   (root, torso chain, SMPL leaves) reuse their parent's alignment, so the torso's is identity.
 3. Change of axes into SMPL coordinates: ``D_j = C @ G @ A_j @ C^T``.
 4. Relative rotation ``R_j = D_parent(j)^T @ D_j``; the pelvis's ``D`` is the global orientation.
 

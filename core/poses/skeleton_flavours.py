@@ -37,8 +37,11 @@ class JointSource:
     Attributes:
         driver: BVH joint whose global rotation is used.
         bone_end: BVH joint (or end site) at the far end of the bone, used to line the BVH rest
-            bone up with the SMPL rest bone; ``None`` reuses the SMPL parent's rest alignment
-            (used for the root and for SMPL's leaf joints, which have no bone of their own).
+            bone up with the SMPL rest bone; ``None`` reuses the SMPL parent's rest alignment.
+            The tables use ``None`` for the root, for SMPL's leaf joints (no bone of their own)
+            and for the torso chain (spine1-3, neck, head): every skeleton's zero pose has an
+            upright, neutral torso, and the few degrees by which the spine bones' directions
+            differ come from different spine geometry (SMPL's thoracic curve), not posture.
         blend_with: optional second BVH joint; the global rotation is then the geodesic
             interpolation ``slerp(G[driver], G[blend_with], blend)``. Used to spread one BVH
             joint's rotation over two SMPL spine joints.
@@ -80,14 +83,14 @@ DAZ = SkeletonFlavour(
         "pelvis": JointSource("hip", None),
         "left_hip": JointSource("lThigh", "lShin"),
         "right_hip": JointSource("rThigh", "rShin"),
-        "spine1": JointSource("abdomen", "chest"),
+        "spine1": JointSource("abdomen", None),
         "left_knee": JointSource("lShin", "lFoot"),
         "right_knee": JointSource("rShin", "rFoot"),
-        "spine2": JointSource("abdomen", "chest", blend_with="chest", blend=0.5),
+        "spine2": JointSource("abdomen", None, blend_with="chest", blend=0.5),
         "left_ankle": JointSource("lFoot", "lFoot_end"),
         "right_ankle": JointSource("rFoot", "rFoot_end"),
-        "spine3": JointSource("chest", "neck"),
-        "neck": JointSource("neck", "head"),
+        "spine3": JointSource("chest", None),
+        "neck": JointSource("neck", None),
         "left_collar": JointSource("lCollar", "lShldr"),
         "right_collar": JointSource("rCollar", "rShldr"),
         "head": JointSource("head", None),
@@ -111,16 +114,16 @@ MAX = SkeletonFlavour(
         "pelvis": JointSource("Hips", None),
         "left_hip": JointSource("LeftHip", "LeftKnee"),
         "right_hip": JointSource("RightHip", "RightKnee"),
-        "spine1": JointSource("lowerback", "Chest"),
+        "spine1": JointSource("lowerback", None),
         "left_knee": JointSource("LeftKnee", "LeftAnkle"),
         "right_knee": JointSource("RightKnee", "RightAnkle"),
-        "spine2": JointSource("Chest", "Chest2"),
+        "spine2": JointSource("Chest", None),
         "left_ankle": JointSource("LeftAnkle", "LeftToe"),
         "right_ankle": JointSource("RightAnkle", "RightToe"),
-        "spine3": JointSource("Chest2", "Neck"),
+        "spine3": JointSource("Chest2", None),
         "left_foot": JointSource("LeftToe", None),
         "right_foot": JointSource("RightToe", None),
-        "neck": JointSource("lowerneck", "Neck"),
+        "neck": JointSource("lowerneck", None),
         "left_collar": JointSource("LeftCollar", "LeftShoulder"),
         "right_collar": JointSource("RightCollar", "RightShoulder"),
         "head": JointSource("Head", None),
@@ -142,16 +145,16 @@ ASF = SkeletonFlavour(
         "pelvis": JointSource("hip", None),
         "left_hip": JointSource("lfemur", "ltibia"),
         "right_hip": JointSource("rfemur", "rtibia"),
-        "spine1": JointSource("lowerback", "upperback"),
+        "spine1": JointSource("lowerback", None),
         "left_knee": JointSource("ltibia", "lfoot"),
         "right_knee": JointSource("rtibia", "rfoot"),
-        "spine2": JointSource("upperback", "thorax"),
+        "spine2": JointSource("upperback", None),
         "left_ankle": JointSource("lfoot", "ltoes"),
         "right_ankle": JointSource("rfoot", "rtoes"),
-        "spine3": JointSource("thorax", "upperneck"),
+        "spine3": JointSource("thorax", None),
         "left_foot": JointSource("ltoes", None),
         "right_foot": JointSource("rtoes", None),
-        "neck": JointSource("lowerneck", "upperneck"),
+        "neck": JointSource("lowerneck", None),
         "left_collar": JointSource("lclavicle", "lhumerus"),
         "right_collar": JointSource("rclavicle", "rhumerus"),
         "head": JointSource("head", None),
