@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import os
 import platform
 import statistics
 import sys
@@ -47,21 +48,27 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_network_helpers import make_training_batch
 
 
-def timed(function: Callable[[], object], repeats: int) -> tuple[float, float]:
-    """Median and best wall time in seconds of ``function()`` after one warm-up call."""
+def timed(function: Callable[[], object], repeats: int) -> tuple[float, float, float]:
+    """Median and best wall time, and median process CPU time, in seconds, of ``function()``
+    after one warm-up call.
+
+    The CPU time (all threads) is robust to other processes competing for the cores; divided
+    by the thread count it estimates the wall time on an otherwise idle machine.
+    """
     function()
-    times = []
+    walls, cpus = [], []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         function()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), min(times)
+        walls.append(time.perf_counter() - start)
+        cpus.append(time.process_time() - start_cpu)
+    return statistics.median(walls), min(walls), statistics.median(cpus)
 
 
 def model_table(widths, batches, repeats, samples, body) -> list[str]:
     rows = [
-        "| backbone | head | params (M) | B | inference ms/img median (best) "
-        "| train step ms/img median (best) |",
+        "| backbone | head | params (M) | B | inference ms/img: wall median (best), CPU "
+        "| train step ms/img: wall median (best), CPU |",
         "|---|---|---|---|---|---|",
     ]
     for width in widths:
@@ -90,8 +97,10 @@ def model_table(widths, batches, repeats, samples, body) -> list[str]:
                 name = "ResNet-18" if width == 64 else f"ResNet-18 × {width / 64:g}"
                 rows.append(
                     f"| {name} (base {width}) | {head} | {params:.1f} | {batch_size} "
-                    f"| {inference[0] * per:.1f} ({inference[1] * per:.1f}) "
-                    f"| {training[0] * per:.1f} ({training[1] * per:.1f}) |"
+                    f"| {inference[0] * per:.0f} ({inference[1] * per:.0f}), "
+                    f"{inference[2] * per:.0f} "
+                    f"| {training[0] * per:.0f} ({training[1] * per:.0f}), "
+                    f"{training[2] * per:.0f} |"
                 )
                 print(rows[-1], file=sys.stderr, flush=True)
     return rows
@@ -128,12 +137,12 @@ def breakdown_table(width, batch_size, repeats, samples, body) -> list[str]:
         (f"losses, all terms (2D on K = {samples} samples, 3D)", losses(LossWeights())),
     ]
     rows = [
-        f"| part (base {width}, B = {batch_size}) | ms per step median (best) |",
-        "|---|---|",
+        f"| part (base {width}, B = {batch_size}) | ms per step: wall median (best) | CPU ms |",
+        "|---|---|---|",
     ]
     for name, function in parts:
-        median, best = timed(function, repeats)
-        rows.append(f"| {name} | {median * 1e3:.0f} ({best * 1e3:.0f}) |")
+        median, best, cpu = timed(function, repeats)
+        rows.append(f"| {name} | {median * 1e3:.0f} ({best * 1e3:.0f}) | {cpu * 1e3:.0f} |")
         print(rows[-1], file=sys.stderr, flush=True)
     return rows
 
@@ -175,15 +184,15 @@ def head_table(batch_size, repeats) -> list[str]:
         loop(shared).square().sum().backward()
 
     rows = [
-        f"| pose streams, B = {batch_size}, forward + backward | ms median (best) |",
-        "|---|---|",
+        f"| pose streams, B = {batch_size}, forward + backward | ms: wall median (best) | CPU ms |",
+        "|---|---|---|",
     ]
     for name, function in (
         ("per depth level (implementation)", batched),
         ("per joint loop", looped),
     ):
-        median, best = timed(function, repeats)
-        rows.append(f"| {name} | {median * 1e3:.1f} ({best * 1e3:.1f}) |")
+        median, best, cpu = timed(function, repeats)
+        rows.append(f"| {name} | {median * 1e3:.1f} ({best * 1e3:.1f}) | {cpu * 1e3:.1f} |")
         print(rows[-1], file=sys.stderr, flush=True)
     return rows
 
@@ -202,7 +211,8 @@ def body_table(counts, repeats, body) -> list[str]:
         body.keypoint_regressor, body.v_template, body.shapedirs, body.skinning_weights
     )
     rows = [
-        "| bodies (B × K) | full forward, fwd + bwd ms | keypoints only, fwd + bwd ms "
+        "| bodies (B × K) | full forward, fwd + bwd: wall ms median (best), CPU ms "
+        "| keypoints only, fwd + bwd: wall ms median (best), CPU ms "
         "| max keypoint difference (m) |",
         "|---|---|---|---|",
     ]
@@ -232,8 +242,9 @@ def body_table(counts, repeats, body) -> list[str]:
         full_time = timed(full, repeats)
         light_time = timed(light, repeats)
         rows.append(
-            f"| {count} | {full_time[0] * 1e3:.1f} ({full_time[1] * 1e3:.1f}) "
-            f"| {light_time[0] * 1e3:.2f} ({light_time[1] * 1e3:.2f}) | {difference:.1e} |"
+            f"| {count} | {full_time[0] * 1e3:.1f} ({full_time[1] * 1e3:.1f}), "
+            f"{full_time[2] * 1e3:.1f} | {light_time[0] * 1e3:.1f} ({light_time[1] * 1e3:.1f}), "
+            f"{light_time[2] * 1e3:.1f} | {difference:.1e} |"
         )
         print(rows[-1], file=sys.stderr, flush=True)
     return rows
@@ -256,7 +267,8 @@ def main() -> None:
         f"Machine: {platform.processor() or platform.machine()}, torch {torch.__version__}, "
         f"{torch.get_num_threads()} threads, Python {platform.python_version()}, "
         f"{datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC, "
-        f"256-px inputs, K = {args.samples}.\n"
+        f"256-px inputs, K = {args.samples}, load average at start "
+        f"{os.getloadavg()[0]:.1f}.\n"
     )
     tables = [
         model_table(args.widths, args.batches, args.repeats, args.samples, body),
@@ -266,6 +278,7 @@ def main() -> None:
     ]
     for table in tables:
         print("\n".join(table) + "\n")
+    print(f"Load average at the end: {os.getloadavg()[0]:.1f}.")
 
 
 if __name__ == "__main__":

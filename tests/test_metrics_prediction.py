@@ -43,25 +43,25 @@ def prediction(batch, camera, concentration: float, shape_std: float) -> Network
 def test_perfect_mode_gives_zero_errors(body, case):
     batch, camera, targets = case
     output = prediction(batch, camera, 1e4, 1e-4)
-    metrics = evaluate_prediction(output, body, targets, num_samples=5)
+    metrics = evaluate_prediction(output, body, targets, num_samples=2)
     for name in ("mpjpe", "mpjpe_sc", "mpjpe_pa", "pve_t_sc"):
         assert metrics[name].abs().max() < 1e-4, name
     assert metrics["joint_error_2d_mode"].max() < 1e-3
     assert metrics["joint_error_2d_samples"].max() < 1.0  # px; very concentrated samples
     assert metrics["diversity_visible"].max() < 0.02  # metres; angle spread ~ 0.01 rad per joint
-    assert set(metrics) >= {"mpjpe_min_of_1", "mpjpe_min_of_5", "pve_t_sc_min_of_5"}
-    assert "mpjpe_min_of_10" not in metrics  # only 5 samples
+    assert set(metrics) >= {"mpjpe_min_of_1", "mpjpe_pa_min_of_1", "pve_t_sc_min_of_1"}
+    assert "mpjpe_min_of_5" not in metrics  # only 2 samples
 
 
 def test_broad_distributions_are_diverse_and_min_of_n_decreases(body, case):
     batch, camera, targets = case
     output = prediction(batch, camera, 2.0, 0.5)
     generator = torch.Generator().manual_seed(0)
-    metrics = evaluate_prediction(output, body, targets, num_samples=10, generator=generator)
+    metrics = evaluate_prediction(output, body, targets, num_samples=5, generator=generator)
     assert metrics["diversity_visible"].min() > 0.05
     for name in ("mpjpe", "mpjpe_pa", "pve_t_sc"):
         assert (metrics[f"{name}_min_of_5"] <= metrics[f"{name}_min_of_1"]).all()
-        assert (metrics[f"{name}_min_of_10"] <= metrics[f"{name}_min_of_5"]).all()
+        assert (metrics[f"{name}_min_of_5"] < metrics[f"{name}_min_of_1"]).any()
     assert (metrics["joint_error_2d_samples"] > metrics["joint_error_2d_mode"]).all()
 
 
