@@ -113,12 +113,12 @@ def test_grey_fraction(body: BodyModel):
     generator = torch.Generator().manual_seed(2)
     grey = 0
     total = 0
-    for _ in range(5):
+    for _ in range(3):
         albedo = sampler.sample(200, generator)
         uniform = (albedo == albedo[:, :1, :1]).flatten(1).all(dim=1)
         grey += int(uniform.sum())
         total += 200
-    assert abs(grey / total - 0.1) < 0.035
+    assert abs(grey / total - 0.1) < 0.04  # binomial std 0.012 for 600 bodies
     with pytest.raises(ValueError, match="grey_fraction"):
         ClothingTextureSampler(body.v_template, body.faces, body.part_labels, 1.5)
 

@@ -163,7 +163,7 @@ class MeshRenderer:
         batch, num_vertices, _ = vertices.shape
         planes = vertices.transpose(1, 2).reshape(batch * 3, num_vertices)
         corners = [planes.index_select(1, corner).view(batch, 3, -1) for corner in self.corners]
-        face_normals = torch.linalg.cross(corners[1] - corners[0], corners[2] - corners[0], dim=1)
+        face_normals = _cross(corners[1] - corners[0], corners[2] - corners[0])
         if self.smooth_normals:
             vertex_normals = vertices.new_zeros(batch, 3, num_vertices)
             for corner in self.corners:
@@ -219,6 +219,13 @@ class MeshRenderer:
             )
         lighting.check(batch)
         return batch
+
+
+def _cross(first: torch.Tensor, second: torch.Tensor) -> torch.Tensor:
+    """Cross product of ``(b, 3, N)`` component-major vectors (faster than the generic one)."""
+    x1, y1, z1 = first.unbind(1)
+    x2, y2, z2 = second.unbind(1)
+    return torch.stack((y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2), dim=1)
 
 
 def _normalized(vectors: torch.Tensor) -> torch.Tensor:

@@ -10,9 +10,9 @@ Method (edge functions over per-triangle bounding boxes, with a packed-key z-buf
    triangle whose box holds no pixel centre covers no pixel and is dropped (at 256 px about 57%
    of the body's front faces are such slivers: they lie between pixel centres, and the pixels
    around them are covered by their neighbours, so dropping them leaves no hole).
-2. Group the remaining triangles by the size class of their box (width and height rounded up to
-   1, 2, 3, 4, 6, 8, 12, ...), so that each group enumerates a fixed ``w x h`` grid of candidate
-   pixels per triangle.
+2. Group the remaining triangles by the size of their box: exact ``w x h`` up to 4 x 4 (nearly
+   all of them at 256 px), squares of side 6, 8, 12, 16, 24, ... beyond; each group enumerates
+   a fixed grid of candidate pixels per triangle, and there are few groups (Python overhead).
 3. For a group, the three barycentric coordinates, two image-border guards and the inverse depth
    (affine in screen space) are affine functions of the integer pixel offset inside the box;
    they are evaluated for all candidates with one batched matrix product
@@ -43,6 +43,9 @@ COVERAGE_TOLERANCE = 1e-5
 
 DEFAULT_NEAR = 1e-2
 """Triangles with a vertex nearer than this (metres) are not drawn."""
+
+SMALL_BOX = 4
+"""Boxes up to this many pixels a side get a grid of their exact size; larger ones a square."""
 
 DEFAULT_CHUNK = 8
 """Images rasterised together; larger chunks leave the cache, smaller ones pay Python overhead."""
@@ -136,13 +139,23 @@ class ChunkRasterizer:
         self.near = near
         self.corners = [faces[:, k].contiguous().to(device) for k in range(3)]
         self.num_faces = faces.shape[0]
-        classes = size_classes(size)
-        self.classes = classes
-        # class_of[e] = index of the smallest class >= e, for box extents e = 1..size.
-        class_of = torch.zeros(size + 1, dtype=torch.long)
-        for extent in range(1, size + 1):
-            class_of[extent] = next(i for i, c in enumerate(classes) if c >= extent)
-        self.class_of = class_of.to(device)
+        # Candidate grids: exact w x h boxes up to SMALL_BOX (most triangles), squares of the
+        # next size class beyond; group_of[w * (size + 1) + h] is the grid of a w x h box.
+        shapes: list[tuple[int, int]] = []
+        group_of = torch.zeros((size + 1) * (size + 1), dtype=torch.long)
+        squares = size_classes(size)
+        for width in range(1, size + 1):
+            for height in range(1, size + 1):
+                if max(width, height) <= SMALL_BOX:
+                    shape = (width, height)
+                else:
+                    side = next(c for c in squares if c >= max(width, height))
+                    shape = (side, side)
+                if shape not in shapes:
+                    shapes.append(shape)
+                group_of[width * (size + 1) + height] = shapes.index(shape)
+        self.shapes = shapes
+        self.group_of = group_of.to(device)
         self.grids: dict[tuple[int, int], tuple[torch.Tensor, torch.Tensor]] = {}
         self.device = device
 
@@ -193,27 +206,32 @@ class ChunkRasterizer:
                 drawable &= ~near_vertex.index_select(1, corner)
 
         selected = drawable.view(-1).nonzero().squeeze(1)
-        low_x = low_x.view(-1)[selected].clamp_(min=0.0)
-        low_y = low_y.view(-1)[selected].clamp_(min=0.0)
-        extent_x = (high_x.view(-1)[selected].clamp_(max=size - 1) - low_x).long().clamp_(0) + 1
-        extent_y = (high_y.view(-1)[selected].clamp_(max=size - 1) - low_y).long().clamp_(0) + 1
-        num_classes = len(self.classes)
-        group = self.class_of[extent_x] * num_classes + self.class_of[extent_y]
+        low_x = low_x.view(-1).index_select(0, selected).clamp_(min=0.0)
+        low_y = low_y.view(-1).index_select(0, selected).clamp_(min=0.0)
+        extent_x = (
+            high_x.view(-1).index_select(0, selected).clamp_(max=size - 1) - low_x
+        ).long().clamp_(0) + 1
+        extent_y = (
+            high_y.view(-1).index_select(0, selected).clamp_(max=size - 1) - low_y
+        ).long().clamp_(0) + 1
+        group = self.group_of.index_select(0, extent_x * (size + 1) + extent_y)
         group, order = group.sort()
-        counts = torch.bincount(group, minlength=num_classes**2).tolist()
-        selected = selected[order]
-        low_x = low_x[order]
-        low_y = low_y[order]
+        counts = torch.bincount(group, minlength=len(self.shapes)).tolist()
+        selected = selected.index_select(0, order)
+        low_x = low_x.index_select(0, order)
+        low_y = low_y.index_select(0, order)
 
         # Corner coordinates local to the box, and their inverse depths.
-        x = [corner.view(-1)[selected] - low_x for corner in xs]
-        y = [corner.view(-1)[selected] - low_y for corner in ys]
+        x = [corner.view(-1).index_select(0, selected) - low_x for corner in xs]
+        y = [corner.view(-1).index_select(0, selected) - low_y for corner in ys]
         image = torch.div(selected, self.num_faces, rounding_mode="floor")
-        vertex_index = [
-            (image * vertex_z.shape[1]) + c[selected % self.num_faces] for c in self.corners
+        face_plus_one = selected - image * self.num_faces + 1
+        inverse_vertex_z = vertex_z.reciprocal()
+        inverse_z = [
+            inverse_vertex_z.index_select(1, corner).view(-1).index_select(0, selected)
+            for corner in self.corners
         ]
-        inverse_z = [1.0 / vertex_z.view(-1)[index] for index in vertex_index]
-        inverse_area = 1.0 / area.view(-1)[selected]
+        inverse_area = area.view(-1).index_select(0, selected).reciprocal_()
 
         # Barycentric coordinate of corner i: edge function of the opposite edge (i+1 -> i+2),
         # affine in the pixel offset (ox, oy): coef_x * ox + coef_y * oy + coef_1.
@@ -236,8 +254,7 @@ class ChunkRasterizer:
         coefficients = torch.stack(rows, dim=1).view(-1, 6, 3)
 
         base = image * (size * size) + low_y.long() * size + low_x.long()
-        face_plus_one = selected % self.num_faces + 1
-        largest_offset = (self.classes[-1] - 1) * (size + 1)
+        largest_offset = (max(self.shapes)[0] - 1) * (size + 1)
         buffer = torch.zeros(
             batch * size * size + largest_offset + 1, dtype=torch.long, device=vertices.device
         )
@@ -246,8 +263,7 @@ class ChunkRasterizer:
             if count == 0:
                 continue
             stop = start + count
-            width = self.classes[group_id // num_classes]
-            height = self.classes[group_id % num_classes]
+            width, height = self.shapes[group_id]
             grid_rows, pixel_offset = self.grid(width, height)
             values = torch.matmul(coefficients[start:stop], grid_rows)  # (count, 6, w*h)
             inside = values[:, :5].amin(dim=1) >= -COVERAGE_TOLERANCE
