@@ -103,6 +103,29 @@ def retarget_figure(path: Path, body: BodyModel, num_frames: int = 4) -> np.ndar
     return image
 
 
+def mirror_figure(path: Path, body: BodyModel) -> None:
+    """Three poses of a clip next to their left/right mirror images (front view)."""
+    from hkpd.poses import mirror_pose
+
+    clip = retarget(load_bvh(path))
+    frames = torch.tensor([300, 900, 1400])
+    pose, orient = clip.body_pose[frames], clip.global_orient[frames]
+    mirrored_pose, mirrored_orient = mirror_pose(pose, orient)
+    betas = torch.zeros(len(frames), body.num_betas, dtype=torch.float64)
+    original = body(betas, pose, orient).vertices.numpy()
+    mirrored = body(betas, mirrored_pose, mirrored_orient).vertices.numpy()
+    tiles = []
+    for i in range(len(frames)):
+        # Face the original towards the viewer; the mirror image is shown in the mirrored view.
+        turn = heading_turn(orient[i].numpy(), 0.0)
+        flip = np.diag([-1.0, 1.0, 1.0])
+        tiles.append(label(render(original[i] @ turn.T, body.faces.numpy(), size=SIZE),
+                           f"{path.stem} f{int(frames[i]) + 1}"))  # fmt: skip
+        tiles.append(label(render(mirrored[i] @ (flip @ turn @ flip).T, body.faces.numpy(),
+                                  size=SIZE), "mirrored"))  # fmt: skip
+    cv2.imwrite(str(OUT / "poses_mirror.png"), np.concatenate(tiles, axis=1))
+
+
 def main() -> None:
     root = Path(sys.argv[1] if len(sys.argv) > 1 else "/work/shared/data/cmu_mocap")
     OUT.mkdir(exist_ok=True)
@@ -111,6 +134,7 @@ def main() -> None:
         for flavour, clips in CLIPS.items():
             parts = [retarget_figure(root / clip, body) for clip in clips]
             cv2.imwrite(str(OUT / f"poses_retarget_{flavour}.png"), np.concatenate(parts, axis=0))
+        mirror_figure(root / CLIPS["daz"][1], body)
         from hkpd.poses import ProceduralPosePrior
 
         prior = ProceduralPosePrior()
