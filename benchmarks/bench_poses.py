@@ -36,8 +36,18 @@ def main() -> None:
     parser.add_argument("--bank", default="/tmp/hkpd_poses/cmu_poses.npz")
     parser.add_argument("--bvh", default="/work/shared/data/cmu_mocap/daz_bvh_Przestr/02_01.bvh")
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument(
+        "--threads", type=int, nargs="+", default=[1, torch.get_num_threads()],
+        help="torch intra-op thread counts to measure with (default: 1 and the default)",
+    )  # fmt: skip
     args = parser.parse_args()
     torch.set_grad_enabled(False)
+    for threads in dict.fromkeys(args.threads):
+        torch.set_num_threads(threads)
+        run(args)
+
+
+def run(args: argparse.Namespace) -> None:
     rows: list[tuple[str, str, float, float]] = []
     if Path(args.bvh).is_file():
         motion = load_bvh(args.bvh)
