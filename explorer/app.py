@@ -34,6 +34,10 @@ PREDICTION_DEBOUNCE_S = 0.12
 """Occluder edits closer together than this trigger one prediction."""
 
 CAMERA_FOV_DEG = 40.0
+ASSUMED_ASPECT = 1.6
+"""Canvas width / height the first view is framed for (a laptop browser window)."""
+FREE_CANVAS_FRACTION = 0.7
+"""Part of the canvas width not covered by the floating control panel."""
 SCREENSHOT_SIZE = (720, 1280)
 """``(height, width)`` of the screenshot requested from the browser."""
 
@@ -283,15 +287,20 @@ class ExplorerApp:
 
     # ------------------------------------------------------------------ helpers
     def _frame_camera(self, placement: PhotoPlacement) -> None:
-        left = placement.centre[0] - placement.width_m / 2
-        right = HEATMAP_OFFSET + 0.45
-        centre_x = (left + right) / 2 + 0.12 * (right - left)  # the panel covers the right
-        half_width = (right - left) / 2 + 0.25
-        half_height = max(placement.height_m, 2.0) / 2 + 0.1
-        tan_half = math.tan(math.radians(CAMERA_FOV_DEG) / 2)
-        distance = max(half_height / tan_half, half_width / (tan_half * 1.6)) * 1.1
-        position = (centre_x, 0.15, distance)
-        look_at = (centre_x, 0.0, 0.0)
+        """Point every camera at the photo, the bodies and the heatmap, left of the panel."""
+        left = placement.centre[0] - placement.width_m / 2 - 0.1
+        right = HEATMAP_OFFSET + 0.5
+        top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.1
+        bottom = min(placement.centre[1] - placement.height_m / 2, -1.0) - 0.1
+        tan_v = math.tan(math.radians(CAMERA_FOV_DEG) / 2)
+        tan_h = tan_v * ASSUMED_ASPECT
+        # The content should fill the part of the canvas the floating panel leaves free.
+        visible_width = (right - left) / FREE_CANVAS_FRACTION
+        distance = max(visible_width / (2 * tan_h), (top - bottom) / (2 * tan_v))
+        shift = (0.5 - FREE_CANVAS_FRACTION / 2) * 2 * distance * tan_h
+        centre = ((left + right) / 2 + shift, (top + bottom) / 2)
+        position = (centre[0], centre[1] + 0.1, distance)
+        look_at = (centre[0], centre[1], 0.0)
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
         for client in self.server.get_clients().values():

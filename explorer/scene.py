@@ -43,16 +43,16 @@ COCO_BONES = (
 )
 """COCO-17 skeleton edges."""
 
-MODE_COLOUR = (226, 188, 160)
+MODE_COLOUR = (236, 168, 128)
 SAMPLE_COLOUR = (90, 150, 235)
-SAMPLE_OPACITY = 0.22
-HEATMAP_BASE_COLOUR = (200, 200, 200)
+SAMPLE_OPACITY = 0.16
+HEATMAP_BASE_COLOUR = (150, 150, 155)
 AXIS_COLOURS = np.array([[230, 60, 60], [60, 180, 75], [60, 110, 230]], dtype=np.uint8)
 
 BODY_POSITION = (0.0, 0.0, 0.0)
-HEATMAP_OFFSET = 1.05
+HEATMAP_OFFSET = 0.95
 """Metres between the sample body and the heatmap body."""
-PHOTO_GAP = 0.55
+PHOTO_GAP = 0.5
 """Metres between the photo's right edge and the body's centre."""
 OVERLAY_LIFT = -0.004
 """Local z of drawings on the photo (negative: towards the viewer)."""
@@ -136,7 +136,7 @@ class ExplorerScene:
                 "/photo/keypoints",
                 self._photo_points(keypoints),
                 colours,
-                point_size=0.03,
+                point_size=0.018,
                 point_shape="circle",
                 point_shading="flat",
             )
@@ -274,7 +274,7 @@ class ExplorerScene:
                 "/heat/points",
                 view.mode_vertices,
                 colours,
-                point_size=0.014,
+                point_size=0.026,
                 point_shape="circle",
                 point_shading="flat",
             )
@@ -286,7 +286,7 @@ class ExplorerScene:
 
     def _update_axes(self, view: PosteriorView) -> None:
         axes = view.axes
-        length = 0.16
+        length = 0.22
         starts = np.repeat(axes.origin[None], 3, axis=0)
         ends = starts + length * axes.axes.T
         self.server.scene.add_arrows(

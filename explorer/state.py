@@ -65,18 +65,19 @@ class Occluder:
 def clamp_box(
     box: tuple[float, float, float, float], width: int, height: int
 ) -> tuple[float, float, float, float] | None:
-    """Order a box's corners and clip it to a ``width x height`` photo.
+    """Order a box's corners, clip it to a ``width x height`` photo, round to whole pixels.
 
     Returns:
-        ``(x0, y0, x1, y1)`` inside ``[0, width] x [0, height]``, or None when less than
+        ``(x0, y0, x1, y1)`` integers (as floats) inside ``[0, width] x [0, height]``, or None
+        when less than
         :data:`MIN_OCCLUDER_SIDE` pixels of it remain on the photo (or it is not finite).
     """
     if not all(math.isfinite(v) for v in box):
         return None
     x0, x1 = sorted((float(box[0]), float(box[2])))
     y0, y1 = sorted((float(box[1]), float(box[3])))
-    x0, x1 = min(max(x0, 0.0), width), min(max(x1, 0.0), width)
-    y0, y1 = min(max(y0, 0.0), height), min(max(y1, 0.0), height)
+    x0, x1 = (float(round(min(max(v, 0.0), width))) for v in (x0, x1))
+    y0, y1 = (float(round(min(max(v, 0.0), height))) for v in (y0, y1))
     if x1 - x0 < MIN_OCCLUDER_SIDE or y1 - y0 < MIN_OCCLUDER_SIDE:
         return None
     return (x0, y0, x1, y1)
