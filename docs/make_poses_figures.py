@@ -1,5 +1,6 @@
-"""Render the retargeting check pictures docs/figures/poses_retarget_*.png and the procedural
-prior picture docs/figures/poses_procedural.png.
+"""Render the retargeting check pictures docs/figures/poses_retarget_{daz,max,asf}.png, the
+mirroring example docs/figures/poses_mirror.png and the procedural prior samples
+docs/figures/poses_procedural.png.
 
 Usage: python docs/make_poses_figures.py [CMU_MOCAP_DIR]   (default /work/shared/data/cmu_mocap)
 
