@@ -17,6 +17,7 @@ import numpy as np
 import torch
 from PIL import Image
 
+from hkpd.camera_conventions import CROP_SIZE
 from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
 from hkpd.prediction.keypoint_detector import KeypointDetection, KeypointDetector
@@ -56,6 +57,7 @@ def prepare_network_input(
     bbox: Sequence[float] | np.ndarray | None = None,
     occluders: Sequence[Sequence[float]] | np.ndarray = (),
     max_side: int = MAX_IMAGE_SIDE,
+    crop_size: int = CROP_SIZE,
 ) -> NetworkInput:
     """Load a photo, paint occluders, detect the person, crop, and build the proxy.
 
@@ -69,6 +71,7 @@ def prepare_network_input(
         bbox: optional ``(x0, y0, x1, y1)`` search region, original-photo pixels.
         occluders: ``(N, 4)`` black boxes, original-photo pixels.
         max_side: working-resolution cap passed to :func:`load_image`.
+        crop_size: side of the crop and proxy in pixels (the network's input size).
 
     Returns:
         The :class:`NetworkInput`.
@@ -87,7 +90,10 @@ def prepare_network_input(
         points_under_boxes(detection.keypoints, boxes), 0.0, detection.confidences
     )
     crop = CropTransform.from_keypoints(
-        detection.keypoints, detection.confidences, image_size=detection.image_size
+        detection.keypoints,
+        detection.confidences,
+        image_size=detection.image_size,
+        size=crop_size,
     )
     crop_rgb = crop.crop_image(loaded.pixels, loaded.scale)
     keypoints_crop = crop.image_to_crop(detection.keypoints)

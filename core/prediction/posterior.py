@@ -11,12 +11,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Protocol
+from typing import Any, Protocol
 
 import torch
 
 from hkpd.body import BodyModel
-from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
+from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
 from hkpd.uncertainty import vertex_uncertainty
@@ -79,6 +79,8 @@ class BodyPosterior:
         concentration_scales: ``(23,)`` the factors applied to the predicted concentrations
             (all ones for the network's own prediction).
         shape_std_scale: the factor applied to the predicted shape standard deviations.
+        network_input: what the network saw (proxy, crop, detection), when the posterior came
+            from a photo through :class:`hkpd.prediction.Predictor`.
     """
 
     F: torch.Tensor
@@ -92,6 +94,7 @@ class BodyPosterior:
     body: BodyModel
     concentration_scales: torch.Tensor | None = None
     shape_std_scale: float = 1.0
+    network_input: Any = None
 
     @property
     def pose_distribution(self) -> KinematicMatrixFisher:
@@ -111,7 +114,9 @@ class BodyPosterior:
         root = posed.joints[:, :1]
         keypoints3d = posed.keypoints - root
         ndc = weak_perspective_project(keypoints3d, self.camera.expand(count, 3))
-        keypoints2d = self.crop.crop_to_image(ndc_to_pixels(ndc))
+        keypoints2d = self.crop.crop_to_image(
+            ndc_to_pixels(ndc, getattr(self.crop, "size", CROP_SIZE))
+        )
         return BodyMeshes(
             vertices=posed.vertices - root,
             joints=posed.joints - root,

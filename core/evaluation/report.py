@@ -1,0 +1,52 @@
+"""Markdown tables of evaluation results."""
+
+from __future__ import annotations
+
+import math
+
+METRIC_LABELS: dict[str, str] = {
+    "mpjpe": "MPJPE (mm)",
+    "mpjpe_sc": "MPJPE-SC (mm)",
+    "mpjpe_pa": "MPJPE-PA (mm)",
+    "pve_t_sc": "PVE-T-SC (mm)",
+    "joint_error_2d_mode": "2D joint err. mode (px)",
+    "joint_error_2d_samples": "2D joint err. samples (px)",
+    "diversity_visible": "sample spread, visible joints (mm)",
+    "diversity_invisible": "sample spread, invisible joints (mm)",
+}
+"""Readable names of the metrics; min-of-N columns are named in :func:`label`."""
+
+
+def label(name: str) -> str:
+    """A metric's column header, e.g. ``mpjpe_pa_min_of_10`` -> ``MPJPE-PA min of 10 (mm)``."""
+    if name in METRIC_LABELS:
+        return METRIC_LABELS[name]
+    if "_min_of_" in name:
+        base, count = name.split("_min_of_")
+        text = METRIC_LABELS.get(base, base)
+        return text.replace(" (", f" min of {count} (")
+    return name
+
+
+def markdown_table(rows: dict[str, dict[str, float]], columns: list[str] | None = None) -> str:
+    """One row per model/dataset, one column per metric (values with one decimal)."""
+    if not rows:
+        return "(no results)\n"
+    columns = columns or list(next(iter(rows.values())))
+    header = "| | " + " | ".join(label(c) for c in columns) + " |"
+    rule = "|---|" + "---|" * len(columns)
+    lines = [header, rule]
+    for name, metrics in rows.items():
+        cells = []
+        for column in columns:
+            value = metrics.get(column, math.nan)
+            cells.append("–" if value is None or math.isnan(value) else f"{value:.1f}")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def metrics_table(metrics: dict[str, float]) -> str:
+    """One metric per row (for a single model on one dataset)."""
+    lines = ["| metric | value |", "|---|---|"]
+    lines += [f"| {label(name)} | {value:.2f} |" for name, value in metrics.items()]
+    return "\n".join(lines) + "\n"
