@@ -238,6 +238,7 @@ class ExplorerApp:
         if new_photo:
             placement = photo_placement(result, image.shape[1], image.shape[0])
             self.scene.place_photo(image, placement)
+            self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
             self._frame_camera(placement)
         self.scene.show_occluders(self.state.snapshot().occluders)
         self.scene.show_keypoints(posterior.keypoints.numpy(), posterior.confidences.numpy())
@@ -290,8 +291,8 @@ class ExplorerApp:
         """Point every camera at the photo, the bodies and the heatmap, left of the panel."""
         left = placement.centre[0] - placement.width_m / 2 - 0.1
         right = HEATMAP_OFFSET + 0.5
-        top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.1
-        bottom = min(placement.centre[1] - placement.height_m / 2, -1.0) - 0.1
+        top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.25
+        bottom = min(placement.centre[1] - placement.height_m / 2, -1.25) - 0.1
         tan_v = math.tan(math.radians(CAMERA_FOV_DEG) / 2)
         tan_h = tan_v * ASSUMED_ASPECT
         # The content should fill the part of the canvas the floating panel leaves free.

@@ -49,8 +49,11 @@ def legend_image(max_cm: float = DEFAULT_MAX_CM, width: int = 320, height: int =
         ``(height, width, 3)`` uint8 RGB on a white background.
     """
     image = np.full((height, width, 3), 255, dtype=np.uint8)
-    left, right = 14, width - 22
-    top, bottom = 6, height // 2
+    font = 0.42 * height / 64
+    thickness = max(1, round(height / 64))
+    (unit_width, _), _ = cv2.getTextSize("cm", cv2.FONT_HERSHEY_SIMPLEX, font, thickness)
+    left, right = round(14 * height / 64), width - unit_width - round(24 * height / 64)
+    top, bottom = round(6 * height / 64), height // 2
     ramp = np.linspace(0.0, max_cm / 100.0, right - left)
     image[top:bottom, left:right] = uncertainty_colours(ramp, max_cm)[None]
     cv2.rectangle(image, (left - 1, top - 1), (right, bottom), (90, 90, 90), 1)
@@ -59,11 +62,13 @@ def legend_image(max_cm: float = DEFAULT_MAX_CM, width: int = 320, height: int =
         x = left + round(value / max_cm * (right - left - 1))
         cv2.line(image, (x, bottom), (x, bottom + 4), (60, 60, 60), 1)
         text = f"{value:g}"
-        (w, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.42, 1)
-        cv2.putText(image, text, (x - w // 2, bottom + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.42,
-                    (40, 40, 40), 1, cv2.LINE_AA)  # fmt: skip
-    cv2.putText(image, "cm", (right + 3, bottom + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.42,
-                (40, 40, 40), 1, cv2.LINE_AA)  # fmt: skip
+        (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, font, thickness)
+        baseline = bottom + round(6 * height / 64) + h
+        cv2.putText(image, text, (x - w // 2, baseline), cv2.FONT_HERSHEY_SIMPLEX, font,
+                    (40, 40, 40), thickness, cv2.LINE_AA)  # fmt: skip
+    unit_x = x + w // 2 + round(5 * height / 64)
+    cv2.putText(image, "cm", (unit_x, baseline), cv2.FONT_HERSHEY_SIMPLEX, font, (40, 40, 40),
+                thickness, cv2.LINE_AA)  # fmt: skip
     return image
 
 

@@ -185,6 +185,7 @@ class ExplorerPanels:
         if scene.heatmap_max_cm != self.heat_max.value:
             scene.heatmap_max_cm = float(self.heat_max.value)
             self.legend.image = legend_image(scene.heatmap_max_cm)
+            scene.show_legend()
         self.app.redraw()
 
     # ------------------------------------------------------------------ dynamic parts

@@ -18,7 +18,7 @@ import threading
 import numpy as np
 import viser
 
-from hkpd.explorer.colour_map import uncertainty_colours
+from hkpd.explorer.colour_map import legend_image, uncertainty_colours
 from hkpd.explorer.photo_geometry import HALF_TURN_ABOUT_X, PhotoPlacement
 from hkpd.explorer.posterior_view import PosteriorView
 from hkpd.explorer.state import Occluder
@@ -46,7 +46,7 @@ COCO_BONES = (
 MODE_COLOUR = (236, 168, 128)
 SAMPLE_COLOUR = (90, 150, 235)
 SAMPLE_OPACITY = 0.16
-HEATMAP_BASE_COLOUR = (150, 150, 155)
+HEATMAP_BASE_COLOUR = (70, 95, 165)
 AXIS_COLOURS = np.array([[230, 60, 60], [60, 180, 75], [60, 110, 230]], dtype=np.uint8)
 
 BODY_POSITION = (0.0, 0.0, 0.0)
@@ -54,6 +54,8 @@ HEATMAP_OFFSET = 0.95
 """Metres between the sample body and the heatmap body."""
 PHOTO_GAP = 0.5
 """Metres between the photo's right edge and the body's centre."""
+LEGEND_HEIGHT = -1.12
+"""World height of the colour bar's centre."""
 OVERLAY_LIFT = -0.004
 """Local z of drawings on the photo (negative: towards the viewer)."""
 
@@ -97,6 +99,45 @@ class ExplorerScene:
             cell_color=(215, 215, 215),
             section_color=(180, 180, 180),
         )
+
+    def show_titles(self, top: float) -> None:
+        """Titles above the three columns and the colour bar under the heatmap body.
+
+        Args:
+            top: world height (metres) of the titles.
+        """
+        with self._lock:
+            assert self.placement is not None
+            titles = (
+                ("photo", "Photo · shift+drag to hide a part", self.placement.centre[0]),
+                ("samples", "Most likely body + samples", BODY_POSITION[0]),
+                ("uncertainty", "Uncertainty over samples", HEATMAP_OFFSET),
+            )
+            for name, text, x in titles:
+                self.server.scene.add_label(
+                    f"/titles/{name}",
+                    text,
+                    position=(x, top, 0.0),
+                    font_screen_scale=1.15,
+                    anchor="bottom-center",
+                )
+            self.show_legend()
+
+    def show_legend(self) -> None:
+        """The colour bar (centimetres) under the heatmap body."""
+        with self._lock:
+            legend = legend_image(self.heatmap_max_cm, width=540, height=96)
+            self.server.scene.add_image(
+                "/legend",
+                legend,
+                0.9,
+                0.15,
+                format="png",
+                wxyz=HALF_TURN_ABOUT_X,
+                position=(HEATMAP_OFFSET, LEGEND_HEIGHT, 0.05),
+                cast_shadow=False,
+                receive_shadow=False,
+            )
 
     # ------------------------------------------------------------------ photo
     def place_photo(self, image: np.ndarray, placement: PhotoPlacement) -> None:
@@ -274,7 +315,7 @@ class ExplorerScene:
                 "/heat/points",
                 view.mode_vertices,
                 colours,
-                point_size=0.026,
+                point_size=0.03,
                 point_shape="circle",
                 point_shading="flat",
             )
