@@ -221,37 +221,37 @@ class ChunkRasterizer:
         low_x = low_x.index_select(0, order)
         low_y = low_y.index_select(0, order)
 
-        # Corner coordinates local to the box, and their inverse depths.
-        x = [corner.view(-1).index_select(0, selected) - low_x for corner in xs]
-        y = [corner.view(-1).index_select(0, selected) - low_y for corner in ys]
+        # Corner coordinates local to the box, and their inverse depths: (3 corners, n).
+        corner_x = torch.stack([c.view(-1).index_select(0, selected) for c in xs]) - low_x
+        corner_y = torch.stack([c.view(-1).index_select(0, selected) for c in ys]) - low_y
         image = torch.div(selected, self.num_faces, rounding_mode="floor")
         face_plus_one = selected - image * self.num_faces + 1
         inverse_vertex_z = vertex_z.reciprocal()
-        inverse_z = [
-            inverse_vertex_z.index_select(1, corner).view(-1).index_select(0, selected)
-            for corner in self.corners
-        ]
+        inverse_z = torch.stack(
+            [
+                inverse_vertex_z.index_select(1, corner).view(-1).index_select(0, selected)
+                for corner in self.corners
+            ]
+        )
         inverse_area = area.view(-1).index_select(0, selected).reciprocal_()
 
-        # Barycentric coordinate of corner i: edge function of the opposite edge (i+1 -> i+2),
-        # affine in the pixel offset (ox, oy): coef_x * ox + coef_y * oy + coef_1.
-        rows = []
-        inverse_depth = [0.0, 0.0, 0.0]
-        for i in range(3):
-            j, k = (i + 1) % 3, (i + 2) % 3
-            coef_x = (y[k] - y[j]) * inverse_area
-            coef_y = (x[j] - x[k]) * inverse_area
-            coef_1 = (x[k] * y[j] - x[j] * y[k]) * inverse_area
-            rows.extend((coef_x, coef_y, coef_1))
-            inverse_depth[0] = inverse_depth[0] + coef_x * inverse_z[i]
-            inverse_depth[1] = inverse_depth[1] + coef_y * inverse_z[i]
-            inverse_depth[2] = inverse_depth[2] + coef_1 * inverse_z[i]
+        # Barycentric coordinate of corner i: edge function of the opposite edge (j = i+1 to
+        # k = i+2), affine in the pixel offset (ox, oy): coef_x * ox + coef_y * oy + coef_1.
+        x_j, x_k = corner_x.roll(-1, 0), corner_x.roll(-2, 0)
+        y_j, y_k = corner_y.roll(-1, 0), corner_y.roll(-2, 0)
+        barycentric = torch.stack(
+            ((y_k - y_j) * inverse_area, (x_j - x_k) * inverse_area, (x_k * y_j - x_j * y_k)),
+            dim=2,
+        )  # (3, n, 3)
+        barycentric[..., 2] *= inverse_area
+        inverse_depth = (barycentric * inverse_z[..., None]).sum(dim=0, keepdim=True)
         ones = torch.ones_like(inverse_area)
         zeros = torch.zeros_like(inverse_area)
-        rows.extend((-ones, zeros, (size - 1) - low_x))  # x guard: ox <= size-1-low_x
-        rows.extend((zeros, -ones, (size - 1) - low_y))  # y guard
-        rows.extend(inverse_depth)
-        coefficients = torch.stack(rows, dim=1).view(-1, 6, 3)
+        x_guard = torch.stack((-ones, zeros, (size - 1) - low_x), dim=1)  # ox <= size-1-low_x
+        y_guard = torch.stack((zeros, -ones, (size - 1) - low_y), dim=1)
+        coefficients = torch.cat(
+            (barycentric, x_guard[None], y_guard[None], inverse_depth), dim=0
+        )  # (6, n, 3): three barycentrics, two guards, inverse depth
 
         base = image * (size * size) + low_y.long() * size + low_x.long()
         largest_offset = (max(self.shapes)[0] - 1) * (size + 1)
@@ -265,10 +265,12 @@ class ChunkRasterizer:
             stop = start + count
             width, height = self.shapes[group_id]
             grid_rows, pixel_offset = self.grid(width, height)
-            values = torch.matmul(coefficients[start:stop], grid_rows)  # (count, 6, w*h)
-            inside = values[:, :5].amin(dim=1) >= -COVERAGE_TOLERANCE
-            packed = (values[:, 5].view(torch.int32).long() << 32) | face_plus_one[start:stop, None]
-            packed.masked_fill_(~inside, 0)
+            values = torch.matmul(coefficients[:, start:stop], grid_rows)  # (6, count, w*h)
+            lowest = torch.minimum(values[0], values[1])
+            for row in (2, 3, 4):
+                torch.minimum(lowest, values[row], out=lowest)
+            packed = (values[5].view(torch.int32).long() << 32) | face_plus_one[start:stop, None]
+            packed.masked_fill_(lowest < -COVERAGE_TOLERANCE, 0)
             index = base[start:stop, None] + pixel_offset
             buffer.scatter_reduce_(0, index.view(-1), packed.view(-1), "amax")
             start = stop
