@@ -13,6 +13,10 @@ METRIC_LABELS: dict[str, str] = {
     "joint_error_2d_samples": "2D joint err. samples (px)",
     "diversity_visible": "sample spread, visible joints (mm)",
     "diversity_invisible": "sample spread, invisible joints (mm)",
+    "joint_error_2d_mode_box_fraction": "2D joint err. mode (box fraction)",
+    "joint_error_2d_samples_box_fraction": "2D joint err. samples (box fraction)",
+    "people": "people evaluated",
+    "failed": "no detection",
 }
 """Readable names of the metrics; min-of-N columns are named in :func:`label`."""
 
@@ -40,9 +44,15 @@ def markdown_table(rows: dict[str, dict[str, float]], columns: list[str] | None 
         cells = []
         for column in columns:
             value = metrics.get(column, math.nan)
-            cells.append("–" if value is None or math.isnan(value) else f"{value:.1f}")
+            cells.append(_format(value))
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _format(value: float | None) -> str:
+    if value is None or math.isnan(value):
+        return "–"
+    return f"{value:.3f}" if abs(value) < 1 else f"{value:.1f}"
 
 
 def metrics_table(metrics: dict[str, float]) -> str:

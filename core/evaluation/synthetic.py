@@ -7,6 +7,7 @@ from collections.abc import Iterable
 import torch
 
 from hkpd.body import BodyModel
+from hkpd.camera_conventions import CROP_SIZE
 from hkpd.evaluation.prediction_metrics import EvaluationTargets, evaluate_prediction
 from hkpd.synthesis.batch import TrainingBatch
 
@@ -39,7 +40,7 @@ def evaluate_batches(
 
     Returns:
         ``{metric: mean}``: 3D metrics (MPJPE variants, PVE-T-SC, diversity) in millimetres,
-        2D joint errors in pixels of the crop the batches were made at.
+        2D joint errors in pixels at a 256-pixel crop (rescaled from the batches' size).
     """
     sums: dict[str, float] = {}
     counts: dict[str, int] = {}
@@ -59,6 +60,8 @@ def evaluate_batches(
         size = batch.proxy.shape[-1]
         results = evaluate_prediction(output, body, targets, num_samples, size, generator)
         for name, values in results.items():
+            if name.startswith("joint_error_2d"):
+                values = values * (CROP_SIZE / size)  # pixels at a 256 crop, whatever the size
             finite = values[torch.isfinite(values)]
             sums[name] = sums.get(name, 0.0) + float(finite.sum())
             counts[name] = counts.get(name, 0) + int(finite.numel())

@@ -27,6 +27,7 @@ exactly.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -242,6 +243,15 @@ class SyntheticBatches:
             index += 1
 
 
+def iter_fixed_test_set(
+    generator: SyntheticDataGenerator, count: int = 1000, seed: int = 2021, batch_size: int = 50
+) -> Iterator[TrainingBatch]:
+    """The batches of :func:`fixed_test_set`, made one at a time (bounded memory)."""
+    for index, start in enumerate(range(0, count, batch_size)):
+        size = min(batch_size, count - start)
+        yield generator.generate(size, batch_seed(seed, index)).batch
+
+
 def fixed_test_set(
     generator: SyntheticDataGenerator, count: int = 1000, seed: int = 2021, batch_size: int = 50
 ) -> list[TrainingBatch]:
@@ -249,8 +259,4 @@ def fixed_test_set(
 
     Use a generator whose pose source is the held-out *test* split of a pose bank.
     """
-    batches = []
-    for index, start in enumerate(range(0, count, batch_size)):
-        size = min(batch_size, count - start)
-        batches.append(generator.generate(size, batch_seed(seed, index)).batch)
-    return batches
+    return list(iter_fixed_test_set(generator, count, seed, batch_size))

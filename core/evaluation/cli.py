@@ -1,0 +1,133 @@
+"""``hkpd-eval``: evaluate checkpoints on the fixed synthetic test set and on real photos.
+
+Examples::
+
+    hkpd-eval runs/a/last.pt runs/b/last.pt --poses poses.npz        # synthetic test set
+    hkpd-eval runs/a/last.pt --coco ../shared/data/coco_mini --no-synthetic
+    hkpd-eval runs/a/last.pt --poses poses.npz --out report.md
+
+The synthetic test set is 1000 examples (``--count``) rendered from the pose bank's *test*
+split (held-out subjects) with a fixed seed, at each network's own input size, so every run of
+the command sees exactly the same examples. It prints markdown tables and optionally writes them
+to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import torch
+
+from hkpd.evaluation.report import label, markdown_table
+
+SYNTHETIC_COLUMNS = [
+    "mpjpe_sc",
+    "mpjpe_pa",
+    "pve_t_sc",
+    "joint_error_2d_mode",
+    "joint_error_2d_samples",
+]
+TEST_SET_SEED = 2021
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="hkpd-eval", description=__doc__.split("\n\n")[0])
+    parser.add_argument("checkpoints", nargs="+", type=Path, help="checkpoints to evaluate")
+    parser.add_argument("--poses", type=Path, help="pose bank (its test split); else procedural")
+    parser.add_argument("--count", type=int, default=1000, help="synthetic test examples")
+    parser.add_argument("--samples", type=int, default=25, help="samples per example")
+    parser.add_argument("--coco", type=Path, help="folder with annotations/ and photos (COCO)")
+    parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
+    parser.add_argument("--device", default="auto")
+    parser.add_argument("--out", type=Path, help="also write the markdown report here")
+    return parser
+
+
+def evaluate_synthetic(checkpoint: Path, poses: Path | None, count: int, samples: int, device):
+    """Metrics of one checkpoint on the fixed synthetic test set (3D in mm, 2D in px at 256)."""
+    from hkpd.body import BodyModel
+    from hkpd.evaluation.synthetic import evaluate_batches
+    from hkpd.synthesis.generator import (
+        SyntheticDataConfig,
+        SyntheticDataGenerator,
+        iter_fixed_test_set,
+    )
+    from hkpd.training.checkpoint import load_network
+    from hkpd.training.loop import pose_source_for
+
+    network, _ = load_network(checkpoint, device)
+    size = int(network.config.image_size)
+    body = BodyModel().to(device)
+    generator = SyntheticDataGenerator(
+        pose_source_for(poses, "test"), SyntheticDataConfig(image_size=size), device, body=body
+    )
+    batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
+    return evaluate_batches(network, batches, body, samples) | {"image_size": size}
+
+
+def _metric_order(name: str) -> tuple[str, int]:
+    base, _, count = name.partition("_min_of_")
+    return base, int(count) if count else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    arguments = build_parser().parse_args(argv)
+    from hkpd.training.loop import resolve_device
+
+    try:
+        device = resolve_device(arguments.device)
+        for checkpoint in arguments.checkpoints:
+            if not checkpoint.is_file():
+                raise FileNotFoundError(f"checkpoint {checkpoint} does not exist")
+        if arguments.poses is not None and not arguments.poses.is_file():
+            raise FileNotFoundError(f"pose bank {arguments.poses} does not exist")
+        if arguments.coco is not None and not arguments.coco.is_dir():
+            raise FileNotFoundError(f"COCO folder {arguments.coco} does not exist")
+    except (FileNotFoundError, ValueError) as error:
+        print(f"hkpd-eval: error: {error}", file=sys.stderr)
+        return 2
+    report = []
+    torch.set_grad_enabled(False)
+    if not arguments.no_synthetic:
+        rows = {}
+        for checkpoint in arguments.checkpoints:
+            rows[str(checkpoint)] = evaluate_synthetic(
+                checkpoint, arguments.poses, arguments.count, arguments.samples, device
+            )
+        source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
+        report.append(
+            f"### Synthetic test set: {arguments.count} examples, {source}, seed "
+            f"{TEST_SET_SEED}\n\n" + markdown_table(rows, SYNTHETIC_COLUMNS)
+        )
+        every = sorted(
+            {key for row in rows.values() for key in row} - {"image_size"}, key=_metric_order
+        )
+        report.append("All synthetic metrics:\n\n" + markdown_table(rows, every))
+    if arguments.coco is not None:
+        from hkpd.evaluation.real_photos import evaluate_photos, load_coco_people
+        from hkpd.prediction.predictor import Predictor
+
+        people = load_coco_people(arguments.coco)
+        rows = {}
+        for checkpoint in arguments.checkpoints:
+            predictor = Predictor.from_pretrained(checkpoint, device=str(device))
+            rows[str(checkpoint)] = evaluate_photos(predictor, people)
+            predictor.close()
+        columns = list(next(iter(rows.values())))
+        report.append(
+            f"### Real photos: {arguments.coco} ({len(people)} people with >= 12 visible "
+            "keypoints; 2D errors on visible keypoints)\n\n" + markdown_table(rows, columns)
+        )
+    text = "\n".join(report)
+    print(text)
+    if arguments.out:
+        arguments.out.write_text(text)
+    return 0
+
+
+__all__ = ["label", "main"]
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,131 @@
+"""2D evaluation on real photos with human COCO keypoints (e.g. ``coco_mini``).
+
+Each annotated person with enough visible keypoints goes through the full predictor (BlazePose
+detection inside the person's annotated box, crop, proxy, network). The predicted mode and
+samples are reprojected into the photo and compared with the human keypoints that are marked
+visible (COCO ``v = 2``). Errors are reported in pixels of the network's crop rescaled to 256
+(``error / crop side * 256``, comparable with the synthetic test set) and as a fraction of the
+annotated box's larger side.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from hkpd.camera_conventions import CROP_SIZE
+
+MIN_VISIBLE_KEYPOINTS = 12
+"""People with fewer visible keypoints are skipped ("mostly visible" people only)."""
+
+
+@dataclass
+class AnnotatedPerson:
+    """One person of a COCO keypoint annotation file.
+
+    Attributes:
+        image_path: the photo.
+        bbox: ``(x0, y0, x1, y1)`` annotated box, photo pixels.
+        keypoints: ``(17, 2)`` human keypoints, photo pixels.
+        visible: ``(17,)`` bool, COCO visibility flag 2.
+    """
+
+    image_path: Path
+    bbox: np.ndarray
+    keypoints: np.ndarray
+    visible: np.ndarray
+
+
+def load_coco_people(
+    coco_dir: Path, min_visible: int = MIN_VISIBLE_KEYPOINTS
+) -> list[AnnotatedPerson]:
+    """Every mostly-visible, non-crowd person of ``coco_dir/annotations/person_keypoints_*.json``
+    whose photo exists in ``coco_dir/<split>/``.
+
+    Raises:
+        FileNotFoundError: no annotation file in ``coco_dir/annotations``.
+    """
+    files = sorted((Path(coco_dir) / "annotations").glob("person_keypoints_*.json"))
+    if not files:
+        raise FileNotFoundError(
+            f"no COCO keypoint annotations (annotations/person_keypoints_*.json) in {coco_dir}"
+        )
+    people = []
+    for annotation_file in files:
+        split = annotation_file.stem.removeprefix("person_keypoints_")
+        data = json.loads(annotation_file.read_text())
+        names = {image["id"]: image["file_name"] for image in data["images"]}
+        for annotation in data["annotations"]:
+            values = np.asarray(annotation["keypoints"], dtype=np.float64).reshape(17, 3)
+            visible = values[:, 2] == 2
+            path = Path(coco_dir) / split / names[annotation["image_id"]]
+            if annotation.get("iscrowd") or visible.sum() < min_visible or not path.is_file():
+                continue
+            x, y, w, h = annotation["bbox"]
+            people.append(
+                AnnotatedPerson(path, np.array([x, y, x + w, y + h]), values[:, :2], visible)
+            )
+    return people
+
+
+def _errors(points: torch.Tensor, person: AnnotatedPerson) -> np.ndarray:
+    """``(N, 17, 2)`` predicted photo pixels -> ``(N,)`` mean error over visible keypoints."""
+    target = torch.as_tensor(person.keypoints, dtype=points.dtype)
+    distance = (points - target).norm(dim=-1)[:, torch.as_tensor(person.visible)]
+    return distance.mean(-1).numpy()
+
+
+def evaluate_photos(
+    predictor, people: list[AnnotatedPerson], num_samples: int = 10, seed: int = 0,
+    show_progress: bool = True,
+) -> dict[str, float]:  # fmt: skip
+    """Mean 2D errors of the mode and of samples over ``people``.
+
+    Args:
+        predictor: a :class:`hkpd.prediction.Predictor`.
+        people: from :func:`load_coco_people`.
+        num_samples: bodies sampled per person for the samples' error.
+
+    Returns:
+        ``joint_error_2d_mode`` / ``joint_error_2d_samples`` (px at a 256 crop),
+        ``..._box_fraction`` (fraction of the annotated box's larger side), ``people``
+        evaluated and ``failed`` (no detection).
+    """
+    from hkpd.prediction import ImageInputError, NoPersonFoundError
+
+    sums = {"mode": [], "samples": [], "mode_box": [], "samples_box": []}
+    failed = 0
+    for person in tqdm(people, disable=not show_progress, unit="person"):
+        margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
+        search = person.bbox + np.array([-margin, -margin, margin, margin])
+        try:
+            posterior = predictor.predict(person.image_path, bbox=search)
+        except (NoPersonFoundError, ImageInputError, ValueError):
+            failed += 1
+            continue
+        to_256 = CROP_SIZE / posterior.crop.side
+        box_side = float((person.bbox[2:] - person.bbox[:2]).max())
+        mode = _errors(posterior.mode().keypoints2d, person)[0]
+        samples = _errors(posterior.sample(num_samples, seed).keypoints2d, person).mean()
+        sums["mode"].append(mode * to_256)
+        sums["samples"].append(samples * to_256)
+        sums["mode_box"].append(mode / box_side)
+        sums["samples_box"].append(samples / box_side)
+
+    def mean(values: list[float]) -> float:
+        return float(np.mean(values)) if values else math.nan
+
+    return {
+        "joint_error_2d_mode": mean(sums["mode"]),
+        "joint_error_2d_samples": mean(sums["samples"]),
+        "joint_error_2d_mode_box_fraction": mean(sums["mode_box"]),
+        "joint_error_2d_samples_box_fraction": mean(sums["samples_box"]),
+        "people": float(len(sums["mode"])),
+        "failed": float(failed),
+    }

@@ -1,0 +1,51 @@
+"""hkpd-eval on a tiny checkpoint, and the COCO annotation reader."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from hkpd.evaluation.cli import main as eval_main
+from hkpd.evaluation.real_photos import load_coco_people
+from hkpd.network import DistributionNetwork
+from hkpd.network.config import NetworkConfig
+from hkpd.training.checkpoint import save_checkpoint
+
+
+def test_eval_prints_a_markdown_table(tmp_path, capsys) -> None:
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    checkpoint = save_checkpoint(
+        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    report = tmp_path / "report.md"
+    code = eval_main([str(checkpoint), "--count", "3", "--samples", "2", "--out", str(report)])
+    assert code == 0
+    text = report.read_text()
+    assert "MPJPE-SC (mm)" in text and "2D joint err. samples (px)" in text
+    row = next(line for line in text.splitlines() if line.startswith(f"| {checkpoint}"))
+    values = [float(cell) for cell in row.strip("|").split("|")[1:]]
+    assert len(values) == 5 and all(v > 0 for v in values)
+    assert eval_main([str(tmp_path / "missing.pt")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_coco_reader_keeps_mostly_visible_people(tmp_path) -> None:
+    (tmp_path / "annotations").mkdir()
+    (tmp_path / "val2017").mkdir()
+    (tmp_path / "val2017" / "1.jpg").write_bytes(b"")
+    full = [value for i in range(17) for value in (10 + i, 20 + i, 2)]
+    partial = [10, 20, 2] * 5 + [0, 0, 0] * 12
+    data = {
+        "images": [{"id": 1, "file_name": "1.jpg"}, {"id": 2, "file_name": "gone.jpg"}],
+        "annotations": [
+            {"image_id": 1, "keypoints": full, "bbox": [5, 6, 100, 200], "iscrowd": 0},
+            {"image_id": 1, "keypoints": partial, "bbox": [0, 0, 9, 9], "iscrowd": 0},
+            {"image_id": 2, "keypoints": full, "bbox": [0, 0, 9, 9], "iscrowd": 0},
+        ],
+    }
+    (tmp_path / "annotations" / "person_keypoints_val2017.json").write_text(json.dumps(data))
+    people = load_coco_people(tmp_path)
+    assert len(people) == 1
+    np.testing.assert_allclose(people[0].bbox, [5, 6, 105, 206])
+    assert people[0].visible.all() and people[0].keypoints[3].tolist() == [13, 23]
