@@ -1,0 +1,203 @@
+"""Benchmark the explorer's server side: what a user waits for after moving a control.
+
+Runs the app in-process on the demo photo with the test double of the predictor
+(``tests/test_explorer_double.py``: a hand-built posterior, the real body model, sampler,
+heatmap and viser scene; only the network is missing), on the real 13,492-vertex mesh, and
+connects a plain websocket client so that "sent" means *delivered to a client on localhost*:
+the time from the change to the last websocket frame of the update (frames followed by
+150 ms of quiet).
+
+Tables (markdown, for docs/explorer.md):
+
+1. concentration slider change -> 100 new samples + heatmap + 10 meshes delivered;
+2. occluder change -> new prediction displayed (including the 120 ms debounce);
+3. a burst of 40 slider events in 0.4 s: sampling jobs actually run (coalescing);
+4. heatmap transport: coloured point cloud vs per-vertex-coloured GLB (bytes, encode time).
+
+Usage: python benchmarks/bench_explorer.py [--threads 2] [--repeats 15]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import platform
+import statistics
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+import viser
+import websockets
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from test_explorer_double import OcclusionAwareDouble
+
+from hkpd.explorer.app import ExplorerApp
+from hkpd.explorer.colour_map import uncertainty_colours
+
+QUIET_S = 0.15
+
+
+class FrameRecorder:
+    """A websocket client in its own thread that timestamps every frame it receives."""
+
+    def __init__(self, url: str) -> None:
+        self.frames: list[tuple[float, int]] = []
+        self._lock = threading.Lock()
+        self._url = url.replace("http://", "ws://")
+        self._ready = threading.Event()
+        threading.Thread(target=lambda: asyncio.run(self._run()), daemon=True).start()
+        if not self._ready.wait(10):
+            raise RuntimeError("websocket client did not connect")
+
+    async def _run(self) -> None:
+        protocol = f"viser-v{viser.__version__}"
+        async with websockets.connect(self._url, subprotocols=[protocol], max_size=None) as ws:
+            self._ready.set()
+            async for message in ws:
+                with self._lock:
+                    self.frames.append((time.perf_counter(), len(message)))
+
+    def delivered_after(self, start: float, timeout: float = 10.0) -> tuple[float, int]:
+        """(seconds from ``start`` to the last frame before a quiet gap, bytes received)."""
+        deadline = time.perf_counter() + timeout
+        while time.perf_counter() < deadline:
+            time.sleep(0.02)
+            with self._lock:
+                after = [f for f in self.frames if f[0] >= start]
+            if after and time.perf_counter() - after[-1][0] > QUIET_S:
+                return after[-1][0] - start, sum(size for _, size in after)
+        raise TimeoutError("no update reached the client")
+
+
+def median_ms(values: list[float]) -> str:
+    return f"{statistics.median(values) * 1000:.0f}"
+
+
+def best_ms(values: list[float]) -> str:
+    return f"{min(values) * 1000:.0f}"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=15)
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    double = OcclusionAwareDouble()
+    app = ExplorerApp(double, double.scene.image, port=0, num_samples=100, num_displayed=10)
+    recorder = FrameRecorder(app.url)
+    app.wait_idle(60)
+    time.sleep(0.5)
+    load = os.getloadavg()[0]
+
+    # 1. Concentration slider.
+    delivered, computed, sampling, drawing, sizes = [], [], [], [], []
+    for i in range(args.repeats + 2):
+        start = time.perf_counter()
+        app.sampling_changed(app.state.set_joint_exponent("left_elbow", -0.05 * (i % 10 + 1)))
+        app.wait_idle(30)
+        done = time.perf_counter() - start
+        seconds, size = recorder.delivered_after(start)
+        if i >= 2:  # warm-up
+            delivered.append(seconds)
+            computed.append(done)
+            sampling.append(app.timings.sample)
+            drawing.append(app.timings.draw)
+            sizes.append(size)
+
+    # 2. Occluder change.
+    occluder = app.state.add_occluder((250, 210, 300, 260))
+    app.occluders_changed(True)
+    app.wait_idle(30)
+    time.sleep(0.3)
+    occ_delivered, occ_predict = [], []
+    for i in range(max(args.repeats // 2, 5)):
+        start = time.perf_counter()
+        app.occluders_changed(app.state.move_occluder(occluder.ident, (249 - i, 210, 300, 261 + i)))
+        app.wait_idle(30)
+        seconds, _ = recorder.delivered_after(start)
+        occ_delivered.append(seconds)
+        occ_predict.append(app.timings.predict)
+
+    # 3. Burst of slider events.
+    runs_before = app.worker.stats["sample"].run
+    start = time.perf_counter()
+    for i in range(40):
+        app.sampling_changed(app.state.set_global_exponent(-0.5 + 0.025 * i))
+        time.sleep(0.01)
+    last_event = time.perf_counter()
+    app.wait_idle(30)
+    burst_runs = app.worker.stats["sample"].run - runs_before
+    burst_tail, _ = recorder.delivered_after(last_event)
+
+    # 4. Heatmap transport.
+    view = app.view
+    faces = double.body.faces.numpy()
+    colours = uncertainty_colours(view.uncertainty)
+    encode_cloud, encode_glb = [], []
+    for _ in range(5):
+        t = time.perf_counter()
+        cloud_bytes = len(view.mode_vertices.astype(np.float16).tobytes()) + colours.nbytes
+        encode_cloud.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        rgba = np.concatenate([colours, np.full((len(colours), 1), 255, np.uint8)], axis=1)
+        mesh = trimesh.Trimesh(view.mode_vertices, faces, vertex_colors=rgba, process=False)
+        glb_bytes = len(mesh.export(file_type="glb"))
+        encode_glb.append(time.perf_counter() - t)
+    app.stop()
+
+    print(f"# hkpd explorer benchmark — {time.strftime('%Y-%m-%d %H:%M %Z')}")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
+        f"torch threads {args.threads}, load average {load:.1f} (shared machine)"
+    )
+    print()
+    print("| action | median ms | best ms | target ms |")
+    print("|---|---:|---:|---:|")
+    print(
+        f"| slider: adjust + sample 100 + heatmap (worker) | {median_ms(sampling)} | "
+        f"{best_ms(sampling)} | |"
+    )
+    print(
+        f"| slider: push 10 meshes + heatmap + axes to viser | {median_ms(drawing)} | "
+        f"{best_ms(drawing)} | |"
+    )
+    print(f"| slider: change -> worker idle | {median_ms(computed)} | {best_ms(computed)} | |")
+    print(
+        f"| **slider: change -> delivered to a websocket client** | {median_ms(delivered)} | "
+        f"{best_ms(delivered)} | 100 |"
+    )
+    print(
+        f"| occluder: prediction (test double) | {median_ms(occ_predict)} | "
+        f"{best_ms(occ_predict)} | |"
+    )
+    print(
+        f"| **occluder: change -> delivered (incl. 120 ms debounce)** | "
+        f"{median_ms(occ_delivered)} | {best_ms(occ_delivered)} | 500 |"
+    )
+    print()
+    print(
+        f"slider update size: {statistics.median(sizes) / 1e6:.2f} MB per update (10 meshes + "
+        "heatmap + axes + reprojection)"
+    )
+    print(
+        f"burst: 40 slider events in {last_event - start:.2f} s ran {burst_runs} sampling jobs; "
+        f"last event -> delivered {burst_tail * 1000:.0f} ms"
+    )
+    print(
+        f"heatmap as point cloud: {cloud_bytes / 1e3:.0f} kB, encode "
+        f"{median_ms(encode_cloud)} ms; as per-vertex GLB: {glb_bytes / 1e3:.0f} kB, encode "
+        f"{median_ms(encode_glb)} ms"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,173 @@
+"""The explorer app without a browser: the server runs in-process on the demo photo, driven by
+the test double of the predictor (see ``test_explorer_double.py``), and the CLI as a subprocess.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+from test_explorer_double import COCO, OcclusionAwareDouble
+
+from hkpd.explorer.app import ExplorerApp
+from hkpd.explorer.posterior_view import part_uncertainty
+
+ROOT = Path(__file__).resolve().parents[1]
+EXPLORE = [sys.executable, "-m", "hkpd.explorer.cli"]
+
+
+class RecordingClient:
+    """Stands in for a viser ClientHandle: records notifications and downloads."""
+
+    def __init__(self) -> None:
+        self.notifications: list[tuple[str, str]] = []
+        self.downloads: dict[str, bytes] = {}
+
+    def add_notification(self, title: str, body: str, **_kwargs) -> None:
+        self.notifications.append((title, body))
+
+    def send_file_download(self, name: str, content: bytes) -> None:
+        self.downloads[name] = content
+
+
+@pytest.fixture(scope="module")
+def app():
+    double = OcclusionAwareDouble()
+    explorer = ExplorerApp(double, double.scene.image, port=0, num_displayed=3)
+    explorer.double = double
+    assert explorer.wait_idle(60)
+    yield explorer
+    explorer.stop()
+
+
+def limb_uncertainty(app, parts: tuple[str, ...]) -> float:
+    values = part_uncertainty(app.view.uncertainty, app.double.body.part_labels.numpy())
+    return float(np.mean([values[p] for p in parts]))
+
+
+def test_first_view_is_drawn_with_the_requested_counts(app):
+    view = app.view
+    assert view is not None and not app.errors
+    assert view.sample_vertices.shape == (3, 13492, 3)
+    assert view.sample_keypoints2d.shape == (100, 17, 2)
+    assert view.uncertainty.shape == (13492,) and np.all(view.uncertainty >= 0)
+    assert app.scene.placement is not None
+
+
+def test_occluding_an_ankle_raises_uncertainty_of_that_foot_only(app):
+    ankle = app.double.scene.keypoints2d[COCO.index("right_ankle")]
+    leg = ("right_ankle", "right_foot")
+    other = ("left_ankle", "left_foot")
+    before_leg, before_other = limb_uncertainty(app, leg), limb_uncertainty(app, other)
+    assert app.add_occluder((ankle[0] - 20, ankle[1] - 20, ankle[0] + 20, ankle[1] + 20))
+    assert app.wait_idle(30)
+    assert app.result.posterior.confidences[COCO.index("right_ankle")] < 0.5
+    assert limb_uncertainty(app, leg) > 1.5 * before_leg
+    assert limb_uncertainty(app, other) == pytest.approx(before_other, rel=0.25)
+    # Switching it off restores the prediction.
+    ident = app.state.snapshot().occluders[0].ident
+    app.occluders_changed(app.state.set_occluder_enabled(ident, False))
+    assert app.wait_idle(30)
+    assert limb_uncertainty(app, leg) == pytest.approx(before_leg, rel=0.25)
+    app.clear_occluders()
+    assert app.wait_idle(30)
+
+
+def test_concentration_slider_changes_only_the_sampling(app):
+    calls = app.double.calls
+    before = limb_uncertainty(app, ("left_knee",))
+    app.sampling_changed(app.state.set_joint_exponent("left_hip", -1.0))
+    assert app.wait_idle(30)
+    assert app.double.calls == calls  # no new prediction for a concentration change
+    assert limb_uncertainty(app, ("left_knee",)) > 2 * before
+    assert app.view.axes.joint == app.state.selected_joint
+    app.sampling_changed(app.state.reset_concentrations())
+    assert app.wait_idle(30)
+
+
+def test_bad_upload_keeps_the_current_photo_and_says_why(app):
+    client = RecordingClient()
+    size = app.state.image_size
+    app.load_upload("holiday.gif.exe", b"MZ....", client)
+    app.load_upload("broken.jpg", b"\xff\xd8\xff\xe0 not really", client)
+    assert app.wait_idle(30)
+    assert app.state.image_size == size
+    assert [title for title, _ in client.notifications] == ["Photo not loaded"] * 2
+    assert "not a supported photo" in client.notifications[0][1]
+
+
+def test_good_upload_replaces_the_photo_and_clears_occluders(app):
+    client = RecordingClient()
+    app.add_occluder((10, 10, 60, 60))
+    buffer = io.BytesIO()
+    Image.fromarray(np.full((300, 200, 3), 90, np.uint8)).save(buffer, format="JPEG")
+    app.load_upload("person.jpg", buffer.getvalue(), client)
+    assert app.wait_idle(30)
+    assert app.state.image_size == (200, 300)
+    assert app.state.snapshot().occluders == ()
+    assert client.notifications[-1][0] == "Photo loaded"
+    assert app.scene.placement.width_px == 200
+
+
+def test_export_sends_the_mode_and_samples(app):
+    client = RecordingClient()
+    app.request_export("glb", client)
+    assert app.wait_idle(30)
+    scene = trimesh.load(io.BytesIO(client.downloads["hkpd_bodies.glb"]), file_type="glb")
+    assert len(scene.geometry) == 1 + len(app.view.sample_vertices)
+
+
+def run_cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
+    return subprocess.run(
+        [*EXPLORE, *args], capture_output=True, text=True, timeout=timeout, env=env
+    )
+
+
+def test_cli_missing_image_fails_clearly_without_traceback():
+    result = run_cli("/no/such/photo.jpg", "--no-browser")
+    assert result.returncode != 0
+    assert "photo.jpg" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_cli_serves_the_demo_and_stops_cleanly_on_ctrl_c():
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
+    process = subprocess.Popen(
+        [
+            *EXPLORE,
+            "--no-browser",
+            "--port",
+            "0",
+            "--host",
+            "0.0.0.0",
+            "--provider",
+            "test_explorer_double:OcclusionAwareDouble",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        line = ""
+        while "running at" not in line and time.monotonic() < deadline:
+            line = process.stdout.readline()
+        assert "running at http://" in line
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, err
+    assert "stopping" in out and "Traceback" not in err
+    assert "warning: binding to 0.0.0.0" in err
