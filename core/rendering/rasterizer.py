@@ -28,6 +28,22 @@ Method (edge functions over per-triangle bounding boxes, with a packed-key z-buf
 Coverage uses a small tolerance (a pixel centre on a shared edge belongs to both triangles), so a
 closed mesh renders without cracks; the z-buffer resolves the double cover. The batch is
 processed in chunks of a few images so that the per-face arrays stay in cache.
+
+Candidates measured before choosing (``benchmarks/bench_rendering.py``, body mesh with 26,972
+triangles, 256 px, B = 64, CPU, 1 torch thread, shared 2-vCPU VM under load; details and the
+two-thread numbers in ``docs/rendering.md``):
+
+==========================================  ===========  ==============  ===============
+candidate                                   CPU ms/img   body px empty   interior holes
+==========================================  ===========  ==============  ===============
+B: edge functions over boxes (this module)  2.9          0 (reference)   0 cracks
+A: splat 7 points per triangle, same keys   10.8         15.9%           312 per image
+==========================================  ===========  ==============  ===============
+
+(B's ~1.6 interior empty pixels per image are all true gaps between body parts: none lies
+inside a front-facing triangle in float64. Library options: PyTorch3D has no CPU wheels on
+PyPI and is a compiled extension; nvdiffrast is CUDA/OpenGL only; OpenGL renderers need a
+context per worker and give no batched torch tensors.)
 """
 
 from __future__ import annotations
