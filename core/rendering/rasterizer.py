@@ -157,21 +157,18 @@ class ChunkRasterizer:
         self.num_faces = faces.shape[0]
         # Candidate grids: exact w x h boxes up to SMALL_BOX (most triangles), squares of the
         # next size class beyond; group_of[w * (size + 1) + h] is the grid of a w x h box.
-        shapes: list[tuple[int, int]] = []
-        group_of = torch.zeros((size + 1) * (size + 1), dtype=torch.long)
-        squares = size_classes(size)
-        for width in range(1, size + 1):
-            for height in range(1, size + 1):
-                if max(width, height) <= SMALL_BOX:
-                    shape = (width, height)
-                else:
-                    side = next(c for c in squares if c >= max(width, height))
-                    shape = (side, side)
-                if shape not in shapes:
-                    shapes.append(shape)
-                group_of[width * (size + 1) + height] = shapes.index(shape)
-        self.shapes = shapes
-        self.group_of = group_of.to(device)
+        small = [(w, h) for w in range(1, SMALL_BOX + 1) for h in range(1, SMALL_BOX + 1)]
+        sides = [c for c in size_classes(size) if c > SMALL_BOX]
+        self.shapes: list[tuple[int, int]] = small + [(side, side) for side in sides]
+        extent = torch.arange(size + 1)
+        width, height = extent[:, None], extent[None, :]
+        longest = torch.maximum(width, height)
+        small_group = (width - 1) * SMALL_BOX + (height - 1)
+        square_group = len(small) + torch.searchsorted(
+            torch.tensor(sides), longest.contiguous(), right=False
+        )
+        group_of = torch.where(longest <= SMALL_BOX, small_group, square_group).clamp_(min=0)
+        self.group_of = group_of.reshape(-1).to(device)
         self.grids: dict[tuple[int, int], tuple[torch.Tensor, torch.Tensor]] = {}
         self.device = device
 
