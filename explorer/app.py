@@ -80,6 +80,7 @@ class ExplorerApp:
         self.state.set_num_displayed(num_displayed)
         self.timings = Timings()
         self.errors: list[str] = []
+        self.last_screenshot: np.ndarray | None = None
         self._lock = threading.RLock()
         self._image = image
         self._image_token = 0
@@ -277,7 +278,8 @@ class ExplorerApp:
 
     def _screenshot_job(self, client: viser.ClientHandle) -> None:
         height, width = SCREENSHOT_SIZE
-        image = client.get_render(height, width, transport_format="png", timeout=20.0)
+        image = client.get_render(height, width, transport_format="png", timeout=30.0)
+        self.last_screenshot = image
         client.send_file_download("hkpd_explorer.png", png_bytes(image))
 
     def _job_failed(self, lane: str, error: BaseException) -> None:

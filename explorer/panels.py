@@ -5,6 +5,7 @@ Callbacks here only touch the state and ask the app for work; nothing heavy runs
 
 from __future__ import annotations
 
+import threading
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -49,6 +50,7 @@ class ExplorerPanels:
     def __init__(self, server: viser.ViserServer, app: ExplorerApp) -> None:
         self.server = server
         self.app = app
+        self._lock = threading.RLock()  # the occluder list is rebuilt from several threads
         gui = server.gui
         state = app.state
         gui.configure_theme(control_width="large", show_logo=False, show_share_button=False)
@@ -191,6 +193,10 @@ class ExplorerPanels:
     # ------------------------------------------------------------------ dynamic parts
     def show_occluders(self, occluders: tuple[Occluder, ...], image_size: tuple[int, int]) -> None:
         """Rebuild the occluder list when occluders were added, deleted or toggled elsewhere."""
+        with self._lock:
+            self._show_occluders(occluders, image_size)
+
+    def _show_occluders(self, occluders: tuple[Occluder, ...], image_size: tuple[int, int]) -> None:
         signature = (*((o.ident, o.enabled) for o in occluders), image_size)
         if signature == self._occluder_signature:
             self._sync_sliders(occluders)

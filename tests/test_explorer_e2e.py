@@ -174,6 +174,10 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         # 3. Screenshot: the 3D canvas must show something.
         time.sleep(1.0)
         shot = page.screenshot()
+        # The panel's screenshot button renders in the browser and sends a PNG back.
+        app.request_screenshot(next(iter(app.server.get_clients().values())))
+        assert app.wait_idle(60)
+        assert app.last_screenshot is not None and app.last_screenshot.std() > 10
         browser.close()
     image = np.asarray(Image.open(io.BytesIO(shot)).convert("RGB"))
     canvas = image[:, : int(0.68 * image.shape[1])]  # left of the control panel
