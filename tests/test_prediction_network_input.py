@@ -82,6 +82,10 @@ def test_occluders_are_painted_before_detection_and_hide_their_keypoints() -> No
     edges = prepared.proxy[0].numpy()
     assert set(np.unique(edges)) <= {0.0, 1.0} and edges.any()
 
+    small = prepare_network_input(photo, detector, crop_size=128)  # type: ignore[arg-type]
+    assert tuple(small.proxy.shape) == (18, 128, 128) and small.crop_rgb.shape == (128, 128, 3)
+    np.testing.assert_allclose(small.keypoints_crop, (prepared.keypoints_crop + 0.5) / 2 - 0.5)
+
 
 @pytest.mark.skipif(not DEMO_PHOTO.is_file(), reason="demo photos not available")
 def test_real_photo_with_the_legs_hidden() -> None:

@@ -30,11 +30,11 @@ class NetworkInput:
     """The network's input for one person in one photo, and the maps back to the photo.
 
     Attributes:
-        proxy: ``(18, 256, 256)`` float32: Canny edges of the crop, then 17 COCO joint
-            heatmaps (joints below the proxy's confidence threshold left empty).
+        proxy: ``(18, S, S)`` float32, ``S = crop_size`` (256 by default): Canny edges of the
+            crop, then 17 COCO joint heatmaps (joints below the proxy's confidence threshold
+            left empty).
         crop: the square crop (original-photo pixels <-> crop pixels).
-        crop_rgb: ``(256, 256, 3)`` uint8 RGB crop the edges were taken from (occluders
-            painted).
+        crop_rgb: ``(S, S, 3)`` uint8 RGB crop the edges were taken from (occluders painted).
         keypoints_crop: ``(17, 2)`` detected keypoints in crop pixels.
         confidences: ``(17,)`` detector confidences, zeroed for keypoints under an occluder.
         detection: the detector's raw result (original-photo pixels, confidences untouched).
