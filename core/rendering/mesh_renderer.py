@@ -113,6 +113,7 @@ class MeshRenderer:
     def num_faces(self) -> int:
         return int(self.faces.shape[0])
 
+    @torch.no_grad()
     def render(
         self,
         vertices: torch.Tensor,
@@ -132,7 +133,8 @@ class MeshRenderer:
             lighting: B lights (:func:`~hkpd.rendering.lighting.sample_lighting`).
 
         Returns:
-            :class:`RenderOutput`.
+            :class:`RenderOutput`. Not differentiable: it runs without autograd, whatever the
+            inputs require.
         """
         batch = self._check_inputs(vertices, focal_px, face_colours, lighting)
         size = self.image_size
