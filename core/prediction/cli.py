@@ -1,0 +1,406 @@
+"""``hkpd-predict``: 3D body distributions from photos, written to files.
+
+Usage::
+
+    hkpd-predict IMAGE_OR_DIR... --out DIR [--model PATH] [--samples 10]
+                 [--format ply|glb|obj|npz ...] [--bbox X0 Y0 X1 Y1] [--device auto] [--seed 0]
+
+Folders are searched recursively for images (by extension), in sorted order. For every photo
+it writes into ``DIR/<image stem>/``:
+
+- ``mode.<fmt>``: the most likely body, one per mesh format asked for;
+- ``samples/sample_000.<fmt>`` ...: ``--samples`` bodies drawn from the posterior;
+- ``mode_uncertainty.<fmt>``: the mode with per-vertex uncertainty as vertex colours;
+- ``prediction.npz`` (with ``npz`` in ``--format``): distribution parameters and all vertices;
+- ``summary.json``: image, detected person, crop, keypoints, uncertainty, files, timings;
+- ``overview.png``: photo with keypoints and skeletons, uncertainty renders and colour bar.
+
+Mesh files are in a Y-up display frame (``(x, -y, -z)`` of the camera-aligned body frame; see
+:mod:`hkpd.prediction.exports`). A photo that fails (missing, not an image, no person) is
+reported on one line and skipped; the exit status is 1 when any failed, 2 for a usage error or
+a model that cannot be loaded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from PIL import Image
+
+from hkpd.prediction.exports import (
+    ARRAY_FORMAT,
+    DISPLAY_FRAME_NOTE,
+    MESH_FORMATS,
+    OUTPUT_FORMATS,
+    distribution_arrays,
+    write_distribution_npz,
+    write_json,
+    write_mesh,
+)
+from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
+
+IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff")
+"""Files with these extensions (any case) are taken from folders."""
+
+DEFAULT_FORMATS = ("ply", "npz")
+UNCERTAINTY_SAMPLES = 100
+"""Posterior samples behind the per-vertex uncertainty (independent of ``--samples``)."""
+
+PROG = "hkpd-predict"
+
+
+class UsageError(ValueError):
+    """A command-line argument is unusable; the message says what to pass instead."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description="Predict 3D body shape and pose distributions from photos and write meshes, "
+        "the distribution parameters, a JSON summary and an overview picture per photo.",
+    )
+    parser.add_argument("inputs", nargs="+", metavar="IMAGE_OR_DIR", help="photos or folders")
+    parser.add_argument("--out", required=True, type=Path, help="output folder")
+    parser.add_argument("--model", default=None, help="checkpoint (default: the shipped model)")
+    parser.add_argument(
+        "--samples", type=int, default=10, help="sample meshes to write per photo (default 10)"
+    )
+    parser.add_argument(
+        "--format",
+        dest="formats",
+        nargs="+",
+        action="extend",
+        metavar="FMT",
+        help=f"output formats among {', '.join(OUTPUT_FORMATS)} (several allowed; default "
+        f"{' '.join(DEFAULT_FORMATS)})",
+    )
+    parser.add_argument(
+        "--bbox",
+        nargs="+",
+        metavar="X0 Y0 X1 Y1",
+        help="look for the person only inside this box, original-photo pixels (to pick one of "
+        "several people); four numbers, spaces or commas",
+    )
+    parser.add_argument("--device", default="auto", help="auto (CUDA when available), cpu, cuda")
+    parser.add_argument("--seed", type=int, default=0, help="random seed of the samples")
+    return parser
+
+
+def parse_bbox(values: Sequence[str] | None) -> tuple[float, float, float, float] | None:
+    """``--bbox`` values (``X0 Y0 X1 Y1`` or ``X0,Y0,X1,Y1``) as four floats."""
+    if values is None:
+        return None
+    parts = [part for value in values for part in value.replace(",", " ").split()]
+    try:
+        numbers = [float(part) for part in parts]
+    except ValueError:
+        raise UsageError(f"--bbox needs four numbers x0 y0 x1 y1, got {' '.join(values)}") from None
+    if len(numbers) != 4 or not np.isfinite(numbers).all():
+        raise UsageError(f"--bbox needs four numbers x0 y0 x1 y1, got {' '.join(values)}")
+    x0, y0, x1, y1 = numbers
+    if x1 <= x0 or y1 <= y0:
+        raise UsageError(f"--bbox needs x1 > x0 and y1 > y0, got {' '.join(values)}")
+    return x0, y0, x1, y1
+
+
+def parse_formats(values: Sequence[str] | None) -> tuple[str, ...]:
+    """``--format`` values, lower-cased, deduplicated in order; the default when None."""
+    if not values:
+        return DEFAULT_FORMATS
+    formats: list[str] = []
+    for value in values:
+        for name in value.replace(",", " ").lower().split():
+            if name not in OUTPUT_FORMATS:
+                raise UsageError(
+                    f"--format {name!r} is not supported; choose among {', '.join(OUTPUT_FORMATS)}"
+                )
+            if name not in formats:
+                formats.append(name)
+    return tuple(formats)
+
+
+def collect_images(inputs: Sequence[str | os.PathLike[str]]) -> list[Path]:
+    """Files as given, plus the images (by extension) under folders, recursively and sorted.
+
+    Missing paths are kept, so that they are reported like any other failed photo.
+    """
+    images: list[Path] = []
+    for item in inputs:
+        path = Path(item)
+        if path.is_dir():
+            found = sorted(
+                (
+                    p
+                    for p in path.rglob("*")
+                    if p.suffix.lower() in IMAGE_EXTENSIONS and p.is_file()
+                ),
+                key=lambda p: p.as_posix(),
+            )
+            images.extend(found)
+        else:
+            images.append(path)
+    return images
+
+
+def output_names(images: Sequence[Path]) -> list[str]:
+    """A distinct output folder name per image: its stem, made unique when stems repeat."""
+    names: list[str] = []
+    used: set[str] = set()
+    for image in images:
+        name = image.stem or "image"
+        if name in used:
+            name = f"{image.stem}_{image.suffix.lstrip('.').lower()}"
+        candidate, count = name, 2
+        while candidate in used:
+            candidate, count = f"{name}_{count}", count + 1
+        used.add(candidate)
+        names.append(candidate)
+    return names
+
+
+def load_predictor(model: str | None, device: str) -> Any:
+    """The :class:`~hkpd.prediction.predictor.Predictor` (tests replace this function)."""
+    from hkpd.prediction.predictor import Predictor
+
+    return Predictor.from_pretrained(model, device=device)
+
+
+@dataclass
+class PhotoResult:
+    """What happened to one photo."""
+
+    image: Path
+    folder: Path | None = None
+    error: str | None = None
+    files: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    person_box: tuple[float, ...] | None = None
+
+
+def _timed(timings: dict[str, float], name: str, start: float) -> float:
+    now = time.perf_counter()
+    timings[name] = round(now - start, 4)
+    return now
+
+
+def predict_photo(
+    predictor: Any,
+    image: Path,
+    folder: Path,
+    *,
+    samples: int,
+    formats: Sequence[str],
+    bbox: Sequence[float] | None,
+    seed: int,
+    model_path: str,
+    scale: UncertaintyColourScale,
+) -> PhotoResult:
+    """Predict one photo and write its files into ``folder``.
+
+    Raises:
+        ImageInputError, NoPersonFoundError, ValueError, OSError: the photo failed.
+    """
+    from hkpd.prediction.overview import make_overview
+
+    started = time.perf_counter()
+    timings: dict[str, float] = {}
+    posterior = predictor.predict(image, bbox=bbox)
+    clock = _timed(timings, "predict_s", started)
+    mode = posterior.mode()
+    drawn = posterior.sample(samples, seed=seed) if samples > 0 else None
+    clock = _timed(timings, "sample_s", clock)
+    uncertainty = posterior.vertex_uncertainty(n=UNCERTAINTY_SAMPLES, seed=seed)
+    clock = _timed(timings, "uncertainty_s", clock)
+
+    faces = posterior.body.faces
+    uncertainty_np = uncertainty.detach().cpu().double().numpy()
+    colours = scale.colours_uint8(uncertainty_np)
+    folder.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    for fmt in formats:
+        if fmt not in MESH_FORMATS:
+            continue
+        written.append(write_mesh(folder / f"mode.{fmt}", mode.vertices[0], faces))
+        written.append(
+            write_mesh(folder / f"mode_uncertainty.{fmt}", mode.vertices[0], faces, colours)
+        )
+        if drawn is not None:
+            for index, vertices in enumerate(drawn.vertices):
+                path = folder / "samples" / f"sample_{index:03d}.{fmt}"
+                written.append(write_mesh(path, vertices, faces))
+    if ARRAY_FORMAT in formats:
+        arrays = distribution_arrays(posterior, mode, drawn, uncertainty)
+        written.append(write_distribution_npz(folder / "prediction.npz", arrays))
+    clock = _timed(timings, "export_s", clock)
+
+    prepared = posterior.network_input
+    detection = prepared.detection
+    caption = f"{samples} samples, model {Path(model_path).name}"
+    overview = make_overview(
+        prepared.image,
+        posterior.crop,
+        detection.keypoints,
+        detection.confidences,
+        mode.keypoints2d[0].cpu().numpy(),
+        None if drawn is None else drawn.keypoints2d.cpu().numpy(),
+        mode.vertices[0],
+        faces,
+        uncertainty_np,
+        scale,
+        caption=caption,
+    )
+    overview_path = folder / "overview.png"
+    Image.fromarray(overview).save(overview_path)
+    written.append(overview_path)
+    _timed(timings, "overview_s", clock)
+    timings["total_s"] = round(time.perf_counter() - started, 4)
+
+    summary_path = folder / "summary.json"
+    files = [path.relative_to(folder).as_posix() for path in written] + [summary_path.name]
+    crop = posterior.crop
+    summary = {
+        "image": str(image),
+        "image_size": {"width": detection.image_size[0], "height": detection.image_size[1]},
+        "person": {
+            "detected_bbox": detection.person_box,
+            "search_bbox": detection.search_box,
+            "note": "BlazePose takes one person (usually the largest, most central); pass "
+            "--bbox x0 y0 x1 y1 to pick another",
+        },
+        "crop": {
+            "centre": crop.centre,
+            "side": crop.side,
+            "size": crop.size,
+            "box": crop.box,
+        },
+        "keypoints": {
+            "format": "COCO-17, original-photo pixels (u right, v down, pixel centres at integers)",
+            "detected": detection.keypoints,
+            "confidences": detection.confidences,
+            "mode_reprojected": mode.keypoints2d[0],
+        },
+        "uncertainty": {
+            "mean_m": float(uncertainty_np.mean()),
+            "max_m": float(uncertainty_np.max()),
+            "samples": UNCERTAINTY_SAMPLES,
+            "colour_scale": scale.describe(),
+        },
+        "samples": samples,
+        "seed": seed,
+        "formats": list(formats),
+        "frames": DISPLAY_FRAME_NOTE,
+        "files": files,
+        "timings": timings,
+        "model": model_path,
+    }
+    write_json(summary_path, summary)
+    return PhotoResult(
+        image=image,
+        folder=folder,
+        files=files,
+        seconds=timings["total_s"],
+        person_box=tuple(float(v) for v in detection.person_box),
+    )
+
+
+def _expected_errors() -> tuple[type[BaseException], ...]:
+    from hkpd.prediction.image_input import ImageInputError
+    from hkpd.prediction.keypoint_detector import NoPersonFoundError
+
+    return ImageInputError, NoPersonFoundError, ValueError, OSError
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split()) or type(error).__name__
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``hkpd-predict``; returns the exit status (0 all done, 1 some photo failed, 2 usage
+    error or unusable model)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        formats = parse_formats(args.formats)
+        bbox = parse_bbox(args.bbox)
+        if args.samples < 0:
+            raise UsageError(f"--samples must be >= 0, got {args.samples}")
+    except UsageError as error:
+        parser.print_usage(sys.stderr)
+        print(f"{PROG}: error: {error}", file=sys.stderr)
+        return 2
+    images = collect_images(args.inputs)
+    if not images:
+        print(f"{PROG}: error: no images found in {' '.join(args.inputs)}", file=sys.stderr)
+        return 2
+
+    from hkpd.training.checkpoint import CheckpointError
+
+    try:
+        predictor = load_predictor(args.model, args.device)
+    except (FileNotFoundError, CheckpointError, ValueError, RuntimeError, KeyError) as error:
+        print(f"{PROG}: error: cannot load the model: {_one_line(error)}", file=sys.stderr)
+        return 2
+    model_path = args.model or "shipped model (hkpd.assets/models/hkpd_hierarchical.pt)"
+
+    from tqdm import tqdm
+
+    torch.set_grad_enabled(False)
+    scale = UncertaintyColourScale()
+    expected = _expected_errors()
+    results: list[PhotoResult] = []
+    try:
+        progress = tqdm(
+            list(zip(images, output_names(images), strict=True)),
+            desc=PROG,
+            unit="photo",
+            file=sys.stderr,
+        )
+        for image, name in progress:
+            try:
+                result = predict_photo(
+                    predictor,
+                    image,
+                    args.out / name,
+                    samples=args.samples,
+                    formats=formats,
+                    bbox=bbox,
+                    seed=args.seed,
+                    model_path=str(model_path),
+                    scale=scale,
+                )
+            except expected as error:
+                result = PhotoResult(image=image, error=_one_line(error))
+            except Exception as error:  # unexpected: still one line, and go on
+                result = PhotoResult(image=image, error=f"{type(error).__name__}: {error}")
+            results.append(result)
+            if result.error is not None:
+                tqdm.write(f"{PROG}: FAILED {image}: {result.error}", file=sys.stderr)
+            else:
+                box = ", ".join(f"{value:.0f}" for value in result.person_box or ())
+                tqdm.write(
+                    f"{image}: person at bbox ({box}) -> {result.folder} ({result.seconds:.1f} s)"
+                    " [several people? pick one with --bbox x0 y0 x1 y1]",
+                    file=sys.stdout,
+                )
+    finally:
+        closer = getattr(predictor, "close", None)
+        if closer is not None:
+            closer()
+    failed = [result for result in results if result.error is not None]
+    done = len(results) - len(failed)
+    print(f"{PROG}: {done} of {len(results)} photos done, {len(failed)} failed; output in "
+          f"{args.out}")  # fmt: skip
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,285 @@
+"""The overview picture ``hkpd-predict`` saves for each photo.
+
+Left to right:
+
+1. the photo, cut to the network's square crop box: the detected 2D keypoints (white dots,
+   hollow when the detector's confidence is below 0.5), the reprojected skeletons of the
+   posterior samples (thin, semi-transparent) and of the mode (thick);
+2. the mode mesh from the front (the camera's view) and
+3. from the side (seen from the photo's right), both coloured by per-vertex uncertainty;
+4. the colour bar of the uncertainty scale, in centimetres.
+
+Meshes are rendered with :class:`hkpd.rendering.MeshRenderer` (exact z-buffer, Lambert +
+Blinn-Phong shading) at twice the output size and area-averaged down, which anti-aliases the
+silhouette; skeletons are drawn at twice the size too.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import torch
+from PIL import Image, ImageDraw, ImageFont
+
+from hkpd.prediction.crop import CropTransform
+from hkpd.prediction.image_input import LoadedImage
+from hkpd.prediction.uncertainty_colours import UncertaintyColourScale, vertex_to_face_values
+from hkpd.rendering import Lighting, MeshRenderer
+
+COCO_SKELETON = (
+    (15, 13), (13, 11), (16, 14), (14, 12), (11, 12), (5, 11), (6, 12), (5, 6), (5, 7), (6, 8),
+    (7, 9), (8, 10), (1, 2), (0, 1), (0, 2), (1, 3), (2, 4), (3, 5), (4, 6),
+)  # fmt: skip
+"""Pairs of COCO-17 keypoint indices joined by a bone."""
+
+CONFIDENT = 0.5
+"""Detected keypoints below this confidence are drawn hollow."""
+
+BACKGROUND = (246, 246, 244)
+TEXT = (30, 30, 30)
+MODE_COLOUR = (235, 60, 40)
+SAMPLE_COLOUR = (255, 170, 40)
+SAMPLE_ALPHA = 90
+VIEW_DISTANCE_M = 4.0
+"""Distance of the virtual camera from the mesh centre in the mesh renders, metres."""
+
+FILL = 0.86
+"""Fraction of the render's height the mesh's larger extent fills."""
+
+SUPERSAMPLE = 2
+
+
+def _font(size: int) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
+    try:
+        return ImageFont.load_default(size=size)
+    except TypeError:  # Pillow < 10.1 has only the fixed bitmap font
+        return ImageFont.load_default()
+
+
+def _lighting() -> Lighting:
+    """One soft white light from the upper left, in front of the body."""
+    direction = torch.tensor([[-0.35, -0.55, -0.76]])
+    return Lighting(
+        ambient=torch.tensor([0.55]),
+        diffuse=torch.tensor([0.55]),
+        specular=torch.tensor([0.12]),
+        direction=direction / direction.norm(dim=1, keepdim=True),
+        colour=torch.ones(1, 3),
+        shininess=torch.tensor([30.0]),
+    )
+
+
+def _side_rotation() -> torch.Tensor:
+    """Quarter turn about the (vertical) y axis bringing the photo's right (+x) to face the
+    camera (-z)."""
+    return torch.tensor([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
+def render_uncertainty_views(
+    vertices: torch.Tensor,
+    faces: torch.Tensor,
+    uncertainty: torch.Tensor | np.ndarray,
+    scale: UncertaintyColourScale,
+    size: int = 512,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Front and side renders of one mesh coloured by per-vertex uncertainty.
+
+    Args:
+        vertices: ``(V, 3)`` camera-aligned body frame (OpenCV axes), metres.
+        faces: ``(F, 3)`` vertex indices.
+        uncertainty: ``(V,)`` metres.
+        scale: the colour scale.
+        size: side of each square render, pixels.
+
+    Returns:
+        ``(front, side, masks)``: two ``(size, size, 3)`` uint8 RGB images on
+        :data:`BACKGROUND`, and ``(2, size, size)`` float coverage in [0, 1].
+    """
+    points = torch.as_tensor(vertices, dtype=torch.float32).cpu()
+    points = points - (points.amax(0) + points.amin(0)) / 2
+    views = torch.stack([points, points @ _side_rotation().T])
+    extent = float((views.amax(1) - views.amin(1))[:, :2].max())
+    views[..., 2] += VIEW_DISTANCE_M
+    big = size * SUPERSAMPLE
+    focal = FILL * big * (VIEW_DISTANCE_M - extent / 2) / max(extent, 1e-3)
+    face_values = vertex_to_face_values(np.asarray(uncertainty), faces.cpu().numpy())
+    albedo = torch.as_tensor(scale.colours(face_values), dtype=torch.float32)
+    renderer = MeshRenderer(faces.cpu(), image_size=big)
+    lighting = _lighting()
+    images, masks = [], []
+    for view in views:
+        output = renderer.render(view[None], torch.tensor([focal]), albedo[None], lighting)
+        rgb = output.rgb[0].permute(1, 2, 0).clamp(0, 1).numpy()
+        mask = output.mask[0].numpy().astype(np.float32)
+        background = np.asarray(BACKGROUND, np.float32) / 255.0
+        composite = np.where(mask[..., None] > 0, rgb, background)
+        small = cv2.resize(composite, (size, size), interpolation=cv2.INTER_AREA)
+        masks.append(cv2.resize(mask, (size, size), interpolation=cv2.INTER_AREA))
+        images.append(np.round(small * 255.0).astype(np.uint8))
+    return images[0], images[1], np.stack(masks)
+
+
+def _trim_columns(image: np.ndarray, mask: np.ndarray, min_width: int, margin: int) -> np.ndarray:
+    """Cut ``image`` to the columns the mask covers, plus ``margin``, at least ``min_width``."""
+    columns = np.flatnonzero(mask.max(0) > 0.01)
+    width = image.shape[1]
+    if columns.size == 0:
+        return image
+    left, right = int(columns[0]) - margin, int(columns[-1]) + 1 + margin
+    if right - left < min_width:
+        grow = min_width - (right - left)
+        left -= grow // 2
+        right += grow - grow // 2
+    left, right = max(left, 0), min(right, width)
+    return image[:, left:right]
+
+
+def draw_skeletons(
+    photo: LoadedImage,
+    crop: CropTransform,
+    keypoints: np.ndarray,
+    confidences: np.ndarray,
+    mode_keypoints2d: np.ndarray,
+    sample_keypoints2d: np.ndarray | None,
+    size: int = 512,
+) -> np.ndarray:
+    """The photo inside the crop box, with detected keypoints and reprojected skeletons.
+
+    Args:
+        photo: the loaded photo.
+        crop: the network's crop box (original-photo pixels); it is shown at ``size`` pixels.
+        keypoints, confidences: ``(17, 2)`` detected keypoints (original pixels), ``(17,)``.
+        mode_keypoints2d: ``(17, 2)`` reprojected mode keypoints, original pixels.
+        sample_keypoints2d: ``(N, 17, 2)`` reprojected sample keypoints, original pixels.
+        size: side of the returned square, pixels.
+
+    Returns:
+        ``(size, size, 3)`` uint8 RGB.
+    """
+    big = size * SUPERSAMPLE
+    view = CropTransform(crop.centre, crop.side, big)
+    pixels = view.crop_image(photo)
+    # Outside the photo the crop is black; show it as the page background instead.
+    inside = view.crop_image(np.full(photo.pixels.shape[:2], 255, np.uint8), photo.scale)
+    pixels = np.where(inside[..., None] > 127, pixels, np.asarray(BACKGROUND, np.uint8))
+    canvas = Image.fromarray(pixels).convert("RGBA")
+    # Fade the photo a little so the skeletons stand out.
+    canvas = Image.blend(canvas, Image.new("RGBA", canvas.size, (255, 255, 255, 255)), 0.25)
+    overlay = Image.new("RGBA", canvas.size, (0, 0, 0, 0))
+    draw = ImageDraw.Draw(overlay)
+    line = max(2, big // 200)
+    if sample_keypoints2d is not None:
+        for sample in np.asarray(sample_keypoints2d):
+            _draw_bones(draw, view.image_to_crop(sample), (*SAMPLE_COLOUR, SAMPLE_ALPHA), line)
+    canvas = Image.alpha_composite(canvas, overlay)
+    draw = ImageDraw.Draw(canvas)
+    _draw_bones(draw, view.image_to_crop(np.asarray(mode_keypoints2d)), MODE_COLOUR, 2 * line)
+    radius = 2.5 * line
+    for (u, v), confidence in zip(
+        view.image_to_crop(np.asarray(keypoints)), confidences, strict=True
+    ):
+        if not (np.isfinite(u) and np.isfinite(v)):
+            continue
+        fill = (255, 255, 255) if confidence >= CONFIDENT else None
+        box = (u - radius, v - radius, u + radius, v + radius)
+        draw.ellipse(box, fill=fill, outline=(20, 20, 20), width=max(2, line // 2 + 1))
+    return np.asarray(canvas.convert("RGB").resize((size, size), Image.Resampling.LANCZOS))
+
+
+def _draw_bones(
+    draw: ImageDraw.ImageDraw, points: np.ndarray, colour: tuple[int, ...], width: int
+) -> None:
+    for first, second in COCO_SKELETON:
+        start, end = points[first], points[second]
+        if np.isfinite(start).all() and np.isfinite(end).all():
+            draw.line([tuple(start), tuple(end)], fill=colour, width=width, joint="curve")
+
+
+def draw_colour_bar(scale: UncertaintyColourScale, height: int, width: int = 110) -> np.ndarray:
+    """A vertical colour bar of ``scale`` with ticks in cm, ``(height, width, 3)`` uint8."""
+    image = Image.new("RGB", (width, height), BACKGROUND)
+    draw = ImageDraw.Draw(image)
+    font = _font(max(11, height // 34))
+    top, bottom = int(height * 0.14), int(height * 0.9)
+    left, right = 14, 34
+    fractions = np.linspace(1.0, 0.0, bottom - top)
+    ramp = scale.colours(scale.minimum_m + fractions * (scale.maximum_m - scale.minimum_m))
+    strip = np.round(np.repeat(ramp[:, None], right - left, axis=1) * 255).astype(np.uint8)
+    image.paste(Image.fromarray(strip), (left, top))
+    draw.rectangle((left - 1, top - 1, right, bottom), outline=TEXT)
+    span = scale.maximum_m * 100 - scale.minimum_m * 100
+    for tick in scale.ticks_cm(2.0 if span <= 12 else float(math.ceil(span / 5))):
+        y = bottom - (tick - scale.minimum_m * 100) / span * (bottom - top)
+        draw.line((right, y, right + 5, y), fill=TEXT, width=1)
+        label = f"{tick:g}+" if math.isclose(tick, scale.maximum_m * 100) else f"{tick:g}"
+        draw.text((right + 8, y), label, fill=TEXT, font=font, anchor="lm")
+    size = getattr(font, "size", 11)
+    draw.text((left - 8, top - size - 16), "uncertainty", fill=TEXT, font=font, anchor="ls")
+    draw.text((left - 8, top - 10), "(cm)", fill=TEXT, font=font, anchor="ls")
+    return np.asarray(image)
+
+
+def make_overview(
+    photo: LoadedImage,
+    crop: CropTransform,
+    keypoints: np.ndarray,
+    confidences: np.ndarray,
+    mode_keypoints2d: np.ndarray,
+    sample_keypoints2d: np.ndarray | None,
+    mode_vertices: torch.Tensor,
+    faces: torch.Tensor,
+    uncertainty: torch.Tensor | np.ndarray,
+    scale: UncertaintyColourScale,
+    height: int = 480,
+    caption: str = "",
+) -> np.ndarray:
+    """The whole overview (see the module docstring), ``(H, W, 3)`` uint8 RGB.
+
+    Args:
+        photo, crop, keypoints, confidences, mode_keypoints2d, sample_keypoints2d: as in
+            :func:`draw_skeletons` (original-photo pixels).
+        mode_vertices: ``(V, 3)`` the mode mesh, camera-aligned body frame, metres.
+        faces: ``(F, 3)``.
+        uncertainty: ``(V,)`` metres.
+        scale: the uncertainty colour scale.
+        height: height of the panels, pixels (the picture adds a title row and a footer).
+        caption: a line of text for the footer.
+    """
+    values = np.asarray(uncertainty, dtype=np.float64)
+    skeletons = draw_skeletons(
+        photo, crop, keypoints, confidences, mode_keypoints2d, sample_keypoints2d, height
+    )
+    front, side, masks = render_uncertainty_views(mode_vertices, faces, values, scale, height)
+    front = _trim_columns(front, masks[0], height // 3, height // 20)
+    side = _trim_columns(side, masks[1], height // 3, height // 20)
+    bar = draw_colour_bar(scale, height)
+    gap = max(8, height // 40)
+    title_height, footer_height = max(28, height // 16), max(26, height // 18)
+    panels = [skeletons, front, side, bar]
+    width = sum(panel.shape[1] for panel in panels) + gap * (len(panels) + 1)
+    canvas = Image.new("RGB", (width, height + title_height + footer_height), BACKGROUND)
+    draw = ImageDraw.Draw(canvas)
+    font = _font(max(12, height // 30))
+    small = _font(max(11, height // 36))
+    titles = ["photo: detected keypoints, mode and samples", "mode: front", "mode: side", ""]
+    x = gap
+    for panel, title in zip(panels, titles, strict=True):
+        canvas.paste(Image.fromarray(panel), (x, title_height))
+        draw.text((x + 2, title_height - 6), title, fill=TEXT, font=font, anchor="ls")
+        x += panel.shape[1] + gap
+    legend_y = title_height + height + footer_height // 2
+    draw.ellipse((gap, legend_y - 5, gap + 10, legend_y + 5), fill=(255, 255, 255), outline=TEXT)
+    draw.text((gap + 15, legend_y), "detected", fill=TEXT, font=small, anchor="lm")
+    legend_x = gap + 15 + int(draw.textlength("detected", font=small)) + 14
+    draw.line((legend_x, legend_y, legend_x + 22, legend_y), fill=MODE_COLOUR, width=4)
+    draw.text((legend_x + 27, legend_y), "mode", fill=TEXT, font=small, anchor="lm")
+    legend_x += 27 + int(draw.textlength("mode", font=small)) + 14
+    draw.line((legend_x, legend_y, legend_x + 22, legend_y), fill=SAMPLE_COLOUR, width=3)
+    draw.text((legend_x + 27, legend_y), "samples", fill=TEXT, font=small, anchor="lm")
+    mean_cm, max_cm = 100 * float(values.mean()), 100 * float(values.max())
+    stats = f"vertex uncertainty: mean {mean_cm:.1f} cm, max {max_cm:.1f} cm"
+    text = f"{stats}   {caption}".strip()
+    draw.text((skeletons.shape[1] + 2 * gap, legend_y), text, fill=TEXT, font=small, anchor="lm")
+    return np.asarray(canvas)
