@@ -126,7 +126,7 @@ def shade(
     Args:
         albedo: ``(B, 3, N)`` in [0, 1].
         normals: ``(B, 3, N)`` unit normals facing the camera.
-        view: ``(B, 3, N)`` unit vectors from the surface to the camera.
+        view: ``(B, 3, N)`` or ``(B, 3, 1)`` unit vectors from the surface to the camera.
         lighting: B lights.
 
     Returns:

@@ -4,7 +4,9 @@ per-pixel face index, body-part map, mask and depth, on CPU or CUDA with the sam
 Visibility comes from :mod:`hkpd.rendering.rasterizer` (exact coverage of pixel centres,
 perspective-correct z-buffer). Colour is one Lambert + Blinn-Phong shade per face
 (:func:`hkpd.rendering.lighting.shade`) from the face's albedo and, by default, a smoothed
-normal: the mean of the face's three area-weighted vertex normals. Faces at 256 px are mostly
+normal: the mean of the face's three area-weighted vertex normals. The viewing direction for the
+highlights is taken once per image (camera to the mesh's mean vertex), a cheap approximation
+that moves highlights by a few pixels at most. Faces at 256 px are mostly
 sub-pixel to 2 px wide, so per-face shading is visually per-pixel shading; the smoothed normals
 avoid the faceting that raw face normals print into the image (and into its Canny edges) on
 coarse parts of the mesh. Nothing is anti-aliased: silhouettes and texture boundaries are hard
@@ -177,12 +179,13 @@ class MeshRenderer:
             normals = normals.view(batch, 3, -1)
         else:
             normals = face_normals
-        centroid = corners[0] + corners[1] + corners[2]
-        view = _normalized(-centroid)
+        # One viewing direction per image (camera to the mesh's centre): highlights barely move
+        # and the per-face view and halfway vectors are not needed.
+        view = _normalized(-vertices.mean(dim=1)[:, :, None])
         normals = _normalized(normals)
         if not self.cull_backfaces:
             # Two-sided: turn normals of faces seen from behind towards the camera.
-            facing = (face_normals * centroid).sum(dim=1, keepdim=True) < 0
+            facing = (face_normals * corners[0]).sum(dim=1, keepdim=True) < 0
             normals = torch.where(facing, normals, -normals)
         return shade(albedo.transpose(1, 2), normals, view, lighting)
 
