@@ -9,6 +9,7 @@ pushes the results to the global scene, which viser broadcasts to every tab.
 from __future__ import annotations
 
 import math
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -157,8 +158,8 @@ class ExplorerApp:
             self.worker.submit("sample", self._sample_job)
 
     def redraw(self) -> None:
-        """Redraw the current view after a display option changed."""
-        self.worker.submit("sample", self.scene.refresh)
+        """Redraw after a display option changed (a sampling job: it must not replace one)."""
+        self.worker.submit("sample", self._sample_job)
 
     def load_upload(self, name: str, content: bytes, client: viser.ClientHandle | None) -> None:
         """Check an uploaded photo now; predict on it in the worker. Errors notify ``client``."""
@@ -285,6 +286,8 @@ class ExplorerApp:
     def _job_failed(self, lane: str, error: BaseException) -> None:
         message = f"{type(error).__name__}: {error}"
         self.errors.append(f"{lane}: {message}")
+        print(f"hkpd-explore: could not {lane}: {message}", file=sys.stderr, flush=True)
+        self.panels.show_status(f"**Could not {lane}:** {message}")
         for client in self.server.get_clients().values():
             self._notify(client, f"Could not {lane}", message, error=True)
 

@@ -81,7 +81,6 @@ class ExplorerScene:
         self._heat_base: viser.MeshHandle | None = None
         self._heat_points: viser.PointCloudHandle | None = None
         self._occluder_nodes: list[viser.SceneNodeHandle] = []
-        self._last_view: PosteriorView | None = None
         server.scene.set_up_direction("+y")
         server.scene.world_axes.visible = False
         self.scene_body = server.scene.add_frame(
@@ -243,7 +242,6 @@ class ExplorerScene:
             if faces is not None and not np.array_equal(faces, self.faces):
                 self._drop_meshes()
                 self.faces = np.ascontiguousarray(faces, dtype=np.uint32)
-            self._last_view = view
             self._update_mode(view.mode_vertices)
             self._update_samples(view.sample_vertices if self.show_samples else None)
             self._update_heatmap(view)
@@ -255,12 +253,6 @@ class ExplorerScene:
             if handle is not None:
                 handle.remove()
         self._samples, self._mode, self._heat_base = [], None, None
-
-    def refresh(self) -> None:
-        """Redraw the last view (after a display option changed)."""
-        with self._lock:
-            if self._last_view is not None:
-                self.show_view(self._last_view)
 
     def _update_mode(self, vertices: np.ndarray) -> None:
         if self._mode is None:

@@ -126,6 +126,27 @@ def test_export_sends_the_mode_and_samples(app):
     assert len(scene.geometry) == 1 + len(app.view.sample_vertices)
 
 
+class NoPersonProvider:
+    """A provider that fails the way a predictor does on a photo without a person."""
+
+    def predict(self, image, occluders):
+        raise ValueError("no person found in the photo")
+
+
+def test_a_failing_prediction_is_reported_and_the_server_keeps_running():
+    image = np.full((120, 90, 3), 200, np.uint8)
+    explorer = ExplorerApp(NoPersonProvider(), image, port=0)
+    try:
+        assert explorer.wait_idle(30)
+        assert explorer.errors and "no person found" in explorer.errors[0]
+        assert "no person found" in explorer.panels.status.content
+        assert explorer.add_occluder((10, 10, 40, 40))  # still responsive
+        assert explorer.wait_idle(30)
+        assert len(explorer.errors) == 2 and explorer.view is None
+    finally:
+        explorer.stop()
+
+
 def run_cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
     return subprocess.run(
