@@ -1,0 +1,44 @@
+"""Export a training checkpoint as small shipping weights (float16, no optimiser state).
+
+Usage: ``python -m hkpd.training.export runs/hkpd/last.pt assets/models/hkpd_hierarchical.pt``
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from hkpd.training.checkpoint import load_network, save_checkpoint
+
+
+def export_weights(checkpoint: Path, out: Path) -> Path:
+    """Write ``checkpoint``'s network as float16 weights at ``out`` (loads as float32)."""
+    network, payload = load_network(checkpoint)
+    return save_checkpoint(
+        out,
+        network,
+        payload["network_config"],
+        payload["step"],
+        payload["train_config"],
+        payload["samples_seen"],
+        half_precision=True,
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("checkpoint", type=Path)
+    parser.add_argument("out", type=Path)
+    arguments = parser.parse_args(argv)
+    try:
+        path = export_weights(arguments.checkpoint, arguments.out)
+    except (FileNotFoundError, ValueError) as error:
+        print(f"export: error: {error}", file=sys.stderr)
+        return 2
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
