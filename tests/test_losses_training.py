@@ -193,7 +193,16 @@ def test_paper_schedule_stages():
         LossWeights(pose_nll=-1.0)
 
 
-def test_tiny_network_overfits_a_fixed_batch(body):
+@pytest.fixture
+def single_thread():
+    """Tiny tensors gain nothing from a second thread, and lose a lot on a busy machine."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def test_tiny_network_overfits_a_fixed_batch(body, single_thread):
     torch.manual_seed(0)
     batch = make_training_batch(body, 4, 32, seed=11)
     config = NetworkConfig(backbone_base_width=8, head_hidden=64, joint_hidden=(32,), image_size=32)
