@@ -141,6 +141,24 @@ def test_procedural_backgrounds():
     assert (cv2.Canny(grey, 30, 60) > 0).mean() > 0.01
 
 
+def test_pooled_procedural_backgrounds_are_cheap_crops():
+    source = BackgroundSource(pool_size=8, refresh_fraction=0.25)
+    generator = torch.Generator().manual_seed(0)
+    first = source.sample(16, generator, 48)
+    assert first.shape == (16, 3, 48, 48)
+    assert first.min() >= 0.0 and first.max() <= 1.0
+    assert len(source._pool) == 8 and source._pool[0].shape == (60, 60, 3)
+    pool_before = [p.copy() for p in source._pool]
+    second = source.sample(16, generator, 48)
+    replaced = sum(not np.array_equal(a, b) for a, b in zip(pool_before, source._pool, strict=True))
+    assert 1 <= replaced <= 4  # 25% of 16 drawn anew
+    assert not torch.equal(first, second)
+    again = BackgroundSource(pool_size=8).sample(16, torch.Generator().manual_seed(0), 48)
+    assert torch.equal(again, first)
+    with pytest.raises(ValueError, match="pool_size"):
+        BackgroundSource(pool_size=-1)
+
+
 def write_image(path: Path, rgb: tuple[int, int, int], size: tuple[int, int]) -> None:
     image = np.zeros((*size, 3), dtype=np.uint8)
     image[:] = rgb[::-1]  # OpenCV writes BGR

@@ -2,7 +2,7 @@
 
 The paper pastes its bodies on LSUN scenes, so the edge detector sees background clutter (edges
 that do not belong to the person) as it does on real photos. We cannot ship LSUN; by default we
-draw clutter: a colour gradient with smooth low-frequency shading, then 4-14 random filled or
+draw clutter: a smooth colour field (a coarse random grid, upsampled), then 4-14 random filled or
 outlined rectangles (some rotated), ellipses, polygons and lines of random colours, sometimes
 a patch of fine texture, and a random blur (sigma 0-1.5 px) so that edge strengths vary. With a
 folder of photos (jpg/png, searched recursively), each background is instead a random square crop
@@ -35,13 +35,32 @@ class BackgroundSource:
         folder: directory searched recursively for ``.jpg``/``.jpeg``/``.png`` photos, loaded
             lazily (the ``CACHE_SIZE`` most recent are kept decoded); None draws procedural
             clutter.
+        pool_size: procedural mode only. 0 (default): draw every background afresh (~1.5 ms of
+            CPU each). N > 0: keep N drawn backgrounds (each 1.25x the output size) and serve
+            random crops of them, randomly mirrored, replacing
+            ``refresh_fraction`` of the requested count by fresh drawings per call: several
+            times cheaper, at the price of backgrounds recurring (in new crops) for a while.
+        refresh_fraction: share of each call's count drawn anew into the pool.
 
     Raises:
         FileNotFoundError: ``folder`` does not exist or is not a directory.
         ValueError: ``folder`` holds no image files.
     """
 
-    def __init__(self, folder: Path | str | None = None) -> None:
+    def __init__(
+        self,
+        folder: Path | str | None = None,
+        pool_size: int = 0,
+        refresh_fraction: float = 0.25,
+    ) -> None:
+        if pool_size < 0 or not 0.0 <= refresh_fraction <= 1.0:
+            raise ValueError(
+                f"pool_size must be >= 0 and refresh_fraction in [0, 1], got {pool_size}, "
+                f"{refresh_fraction}"
+            )
+        self.pool_size = pool_size
+        self.refresh_fraction = refresh_fraction
+        self._pool: list[np.ndarray] = []
         self.folder = None if folder is None else Path(folder)
         self.files: list[Path] = []
         self._cache: OrderedDict[Path, np.ndarray] = OrderedDict()
@@ -76,16 +95,44 @@ class BackgroundSource:
             device: where the returned tensor lives.
 
         Returns:
-            ``(B, 3, H, W)`` float32 RGB in [0, 1].
+            ``(B, 3, H, W)`` float32 RGB in [0, 1], stored channels-last (call
+            ``.contiguous()`` if a consumer needs the plain layout).
         """
         rng = _TorchRandom(generator)
         images = np.empty((count, image_size, image_size, 3), dtype=np.float32)
         for index in range(count):
-            if self.folder is None:
-                images[index] = draw_clutter(image_size, rng)
-            else:
+            if self.folder is not None:
                 images[index] = self._crop(image_size, rng)
-        return torch.from_numpy(images).permute(0, 3, 1, 2).contiguous().to(device)
+            elif self.pool_size == 0:
+                images[index] = draw_clutter(image_size, rng)
+        if self.folder is None and self.pool_size > 0:
+            self._fill_from_pool(images, rng)
+        # A channels-last (B, 3, H, W) view: transposing the memory costs more than drawing.
+        return torch.from_numpy(images).permute(0, 3, 1, 2).to(device)
+
+    def _fill_from_pool(self, images: np.ndarray, rng: _TorchRandom) -> None:
+        """Refresh part of the pool, then fill ``images (B, S, S, 3)`` with random crops of it."""
+        count, size = images.shape[0], images.shape[1]
+        canvas = (size * 5) // 4
+        if self._pool and self._pool[0].shape[0] != canvas:
+            self._pool = []  # a new output size: start again
+        fresh = max(1, round(self.refresh_fraction * count)) if count else 0
+        for _ in range(fresh):
+            drawing = draw_clutter(canvas, rng)
+            if len(self._pool) < self.pool_size:
+                self._pool.append(drawing)
+            else:
+                self._pool[rng.integer(self.pool_size)] = drawing
+        while len(self._pool) < min(self.pool_size, count):
+            self._pool.append(draw_clutter(canvas, rng))
+        for index in range(count):
+            source = self._pool[rng.integer(len(self._pool))]
+            top, left = rng.integer(canvas - size + 1), rng.integer(canvas - size + 1)
+            crop = source[top : top + size, left : left + size]
+            if rng.uniform(0.0, 1.0) < 0.5:
+                cv2.flip(crop, 1, dst=images[index])
+            else:
+                images[index] = crop
 
     def _crop(self, size: int, rng: _TorchRandom) -> np.ndarray:
         path = self.files[rng.integer(len(self.files))]
@@ -182,12 +229,13 @@ def draw_clutter(size: int, rng: _TorchRandom) -> np.ndarray:
             _texture_patch(image, size, rng)
     sigma = rng.uniform(0.0, 1.5)
     if sigma > 0.3:
-        image = cv2.GaussianBlur(image, (0, 0), sigma)
-    return np.clip(image, 0.0, 1.0)
+        taps = 2 * int(np.ceil(2.0 * sigma)) + 1  # ±2 sigma is plenty for a soft edge
+        image = cv2.GaussianBlur(image, (taps, taps), sigma)
+    return image  # every colour drawn is in [0, 1], and blurring keeps it there
 
 
 def _gradient(size: int, rng: _TorchRandom) -> np.ndarray:
-    """Smooth colour field: a coarse grid of related random colours, bicubically upsampled."""
+    """Smooth colour field: a coarse grid of related random colours, upsampled."""
     grid = 2 + rng.integer(4)
     base = np.array(_muted_colour(rng), dtype=np.float32)
     # Mostly brightness variation, with a little hue drift.
@@ -198,8 +246,9 @@ def _gradient(size: int, rng: _TorchRandom) -> np.ndarray:
         ],
         dtype=np.float32,
     ).reshape(grid, grid, 3)
-    field = cv2.resize(base + coarse, (size, size), interpolation=cv2.INTER_CUBIC)
-    return np.ascontiguousarray(field, dtype=np.float32)
+    # Bilinear upsampling: smooth, never outside [0, 1], and ~10x cheaper than bicubic.
+    coarse = np.clip(base + coarse, 0.0, 1.0)
+    return cv2.resize(coarse, (size, size), interpolation=cv2.INTER_LINEAR)
 
 
 def _muted_colour(rng: _TorchRandom) -> tuple[float, float, float]:
@@ -217,8 +266,9 @@ def _texture_patch(image: np.ndarray, size: int, rng: _TorchRandom) -> None:
     y1 = min(size, y0 + 8 + rng.integer(size // 2))
     period = rng.uniform(2.5, 8.0)
     angle = rng.uniform(0.0, np.pi)
-    ys, xs = np.mgrid[y0:y1, x0:x1].astype(np.float32)
-    wave = np.sin((np.cos(angle) * xs + np.sin(angle) * ys) * (2 * np.pi / period)) > 0
+    xs = np.arange(x0, x1, dtype=np.float32) * np.float32(np.cos(angle) / period)
+    ys = np.arange(y0, y1, dtype=np.float32) * np.float32(np.sin(angle) / period)
+    wave = np.floor(xs[None, :] + ys[:, None]).astype(np.int32) % 2 == 0
     first = np.array(_muted_colour(rng), dtype=np.float32)
     second = np.array(_muted_colour(rng), dtype=np.float32)
     image[y0:y1, x0:x1] = np.where(wave[..., None], first, second)
