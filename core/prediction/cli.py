@@ -4,6 +4,7 @@ Usage::
 
     hkpd-predict IMAGE_OR_DIR... --out DIR [--model PATH] [--samples 10]
                  [--format ply|glb|obj|npz ...] [--bbox X0 Y0 X1 Y1] [--device auto] [--seed 0]
+                 [--uncertainty-samples 100]
 
 Folders are searched recursively for images (by extension), in sorted order. For every photo
 it writes into ``DIR/<image stem>/``:
@@ -53,7 +54,8 @@ IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff")
 
 DEFAULT_FORMATS = ("ply", "npz")
 UNCERTAINTY_SAMPLES = 100
-"""Posterior samples behind the per-vertex uncertainty (independent of ``--samples``)."""
+"""Default number of posterior samples behind the per-vertex uncertainty (independent of
+``--samples``, which only sets how many sample meshes are written)."""
 
 PROG = "hkpd-predict"
 
@@ -89,6 +91,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="X0 Y0 X1 Y1",
         help="look for the person only inside this box, original-photo pixels (to pick one of "
         "several people); four numbers, spaces or commas",
+    )
+    parser.add_argument(
+        "--uncertainty-samples",
+        type=int,
+        default=UNCERTAINTY_SAMPLES,
+        metavar="N",
+        help=f"posterior samples behind the per-vertex uncertainty (default {UNCERTAINTY_SAMPLES})",
     )
     parser.add_argument("--device", default="auto", help="auto (CUDA when available), cpu, cuda")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the samples")
@@ -203,6 +212,7 @@ def predict_photo(
     seed: int,
     model_path: str,
     scale: UncertaintyColourScale,
+    uncertainty_samples: int = UNCERTAINTY_SAMPLES,
 ) -> PhotoResult:
     """Predict one photo and write its files into ``folder``.
 
@@ -218,7 +228,7 @@ def predict_photo(
     mode = posterior.mode()
     drawn = posterior.sample(samples, seed=seed) if samples > 0 else None
     clock = _timed(timings, "sample_s", clock)
-    uncertainty = posterior.vertex_uncertainty(n=UNCERTAINTY_SAMPLES, seed=seed)
+    uncertainty = posterior.vertex_uncertainty(n=uncertainty_samples, seed=seed)
     clock = _timed(timings, "uncertainty_s", clock)
 
     faces = posterior.body.faces
@@ -291,7 +301,7 @@ def predict_photo(
         "uncertainty": {
             "mean_m": float(uncertainty_np.mean()),
             "max_m": float(uncertainty_np.max()),
-            "samples": UNCERTAINTY_SAMPLES,
+            "samples": uncertainty_samples,
             "colour_scale": scale.describe(),
         },
         "samples": samples,
@@ -333,6 +343,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         bbox = parse_bbox(args.bbox)
         if args.samples < 0:
             raise UsageError(f"--samples must be >= 0, got {args.samples}")
+        if args.uncertainty_samples < 2:
+            raise UsageError(f"--uncertainty-samples must be >= 2, got {args.uncertainty_samples}")
     except UsageError as error:
         parser.print_usage(sys.stderr)
         print(f"{PROG}: error: {error}", file=sys.stderr)
@@ -376,6 +388,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     seed=args.seed,
                     model_path=str(model_path),
                     scale=scale,
+                    uncertainty_samples=args.uncertainty_samples,
                 )
             except expected as error:
                 result = PhotoResult(image=image, error=_one_line(error))

@@ -108,12 +108,14 @@ def render_uncertainty_views(
     albedo = torch.as_tensor(scale.colours(face_values), dtype=torch.float32)
     renderer = MeshRenderer(faces.cpu(), image_size=big)
     lighting = _lighting()
+    lighting = Lighting(**{name: value.repeat(2, *([1] * (value.dim() - 1)))
+                           for name, value in vars(lighting).items()})  # fmt: skip
+    output = renderer.render(views, torch.full((2,), focal), albedo.expand(2, -1, -1), lighting)
+    background = np.asarray(BACKGROUND, np.float32) / 255.0
     images, masks = [], []
-    for view in views:
-        output = renderer.render(view[None], torch.tensor([focal]), albedo[None], lighting)
-        rgb = output.rgb[0].permute(1, 2, 0).clamp(0, 1).numpy()
-        mask = output.mask[0].numpy().astype(np.float32)
-        background = np.asarray(BACKGROUND, np.float32) / 255.0
+    for rgb_tensor, mask_tensor in zip(output.rgb, output.mask, strict=True):
+        rgb = rgb_tensor.permute(1, 2, 0).clamp(0, 1).numpy()
+        mask = mask_tensor.numpy().astype(np.float32)
         composite = np.where(mask[..., None] > 0, rgb, background)
         small = cv2.resize(composite, (size, size), interpolation=cv2.INTER_AREA)
         masks.append(cv2.resize(mask, (size, size), interpolation=cv2.INTER_AREA))

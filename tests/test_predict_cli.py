@@ -1,0 +1,320 @@
+"""End-to-end tests of ``hkpd-predict`` on a photo the project renders itself.
+
+The keypoint detector is replaced by a fake one that returns the rendered person's true COCO
+keypoints (BlazePose on a synthetic render is not reliable enough for a test), and the network
+is a tiny untrained one saved as a real checkpoint, so everything else (checkpoint loading, crop,
+proxy, network, posterior, exports, overview) runs for real.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from PIL import Image
+
+from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
+from hkpd.prediction import cli
+from hkpd.prediction.crop import CropTransform
+from hkpd.prediction.exports import to_display_frame
+from hkpd.prediction.image_input import load_image
+from hkpd.prediction.keypoint_detector import KeypointDetection, NoPersonFoundError
+from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
+
+SAMPLES = 3
+NUM_VERTICES = 13492
+
+
+class TruthDetector:
+    """Returns fixed keypoints for any photo with content; raises on a blank photo."""
+
+    def __init__(self, keypoints: np.ndarray) -> None:
+        self.keypoints = keypoints
+        self.calls: list[object] = []
+
+    def detect(self, image, bbox=None) -> KeypointDetection:
+        loaded = load_image(image)
+        self.calls.append(bbox)
+        if loaded.pixels.std() < 1.0:
+            raise NoPersonFoundError(f"{loaded.source}: no person found in the photo")
+        box = np.concatenate([self.keypoints.min(0), self.keypoints.max(0)])
+        return KeypointDetection(
+            keypoints=self.keypoints.copy(),
+            confidences=np.linspace(0.3, 1.0, 17),
+            person_box=box,
+            mask_box=None,
+            search_box=None if bbox is None else np.asarray(bbox, np.float64),
+            image_size=loaded.original_size,
+            seconds=0.0,
+        )
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.fixture(scope="module")
+def scene():
+    from hkpd.explorer.demo_scene import render_demo_scene
+
+    return render_demo_scene()
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory) -> Path:
+    from hkpd.network import DistributionNetwork, NetworkConfig
+    from hkpd.training.checkpoint import save_checkpoint
+
+    torch.manual_seed(0)
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    network = DistributionNetwork(config)
+    path = tmp_path_factory.mktemp("model") / "tiny.pt"
+    return save_checkpoint(path, network, config.to_dict(), 0, {}, 0)
+
+
+@pytest.fixture(scope="module")
+def fake_predictor_factory(scene):
+    from hkpd.prediction.predictor import Predictor
+    from hkpd.training.checkpoint import load_network
+
+    def factory(model, device):
+        network, _ = load_network(model, "cpu")
+        return Predictor(network, "cpu", detector=TruthDetector(scene.keypoints2d))
+
+    return factory
+
+
+@pytest.fixture(scope="module")
+def photos(tmp_path_factory, scene) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("photos")
+    nested = root / "folder" / "inner"
+    nested.mkdir(parents=True)
+    person = nested / "person.png"
+    Image.fromarray(scene.image).save(person)
+    blank = root / "folder" / "blank.jpg"
+    Image.new("RGB", (200, 300), (128, 128, 128)).save(blank)
+    corrupt = root / "folder" / "corrupt.jpg"
+    corrupt.write_bytes(b"\xff\xd8\xff\xe0 this is not really a jpeg" * 10)
+    (root / "folder" / "notes.md").write_text("not an image, and not picked from the folder")
+    text = root / "notes.txt"
+    text.write_text("hello")
+    return {
+        "folder": root / "folder",
+        "person": person,
+        "blank": blank,
+        "corrupt": corrupt,
+        "text": text,
+        "missing": root / "missing.jpg",
+    }
+
+
+@pytest.fixture(scope="module")
+def run_result(tmp_path_factory, photos, checkpoint, fake_predictor_factory):
+    out = tmp_path_factory.mktemp("out")
+    monkeypatch = pytest.MonkeyPatch()
+    monkeypatch.setattr(cli, "load_predictor", fake_predictor_factory)
+    import contextlib
+    import io
+
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = cli.main(
+            [str(photos["folder"]), str(photos["missing"]), str(photos["text"]),
+             "--out", str(out), "--model", str(checkpoint), "--samples", str(SAMPLES),
+             "--format", "ply", "glb", "--format", "obj,npz", "--seed", "3",
+             "--uncertainty-samples", "20"]
+        )  # fmt: skip
+    monkeypatch.undo()
+    return {"code": code, "out": out, "stdout": stdout.getvalue(), "stderr": stderr.getvalue()}
+
+
+def test_failures_are_one_line_each_and_exit_code_is_one(run_result, photos):
+    assert run_result["code"] == 1
+    stderr = run_result["stderr"]
+    assert "Traceback" not in stderr
+    failed = [line for line in stderr.splitlines() if "FAILED" in line]
+    failed_names = sorted(Path(line.split("FAILED ")[1].split(": ")[0]).name for line in failed)
+    assert failed_names == ["blank.jpg", "corrupt.jpg", "missing.jpg", "notes.txt"]
+    assert any("no person" in line for line in failed if "blank.jpg" in line)
+    assert "notes.md" not in stderr + run_result["stdout"]
+    assert "1 of 5 photos done, 4 failed" in run_result["stdout"]
+    assert "--bbox" in run_result["stdout"]  # says how to pick another person
+
+
+def test_files_written(run_result):
+    folder = run_result["out"] / "person"
+    for fmt in ("ply", "glb", "obj"):
+        assert (folder / f"mode.{fmt}").is_file()
+        assert (folder / f"mode_uncertainty.{fmt}").is_file()
+        assert sorted(p.name for p in (folder / "samples").glob(f"*.{fmt}")) == [
+            f"sample_{k:03d}.{fmt}" for k in range(SAMPLES)
+        ]
+    assert {"overview.png", "prediction.npz", "summary.json"} <= {p.name for p in folder.iterdir()}
+    # Failed photos leave no folder behind.
+    assert sorted(p.name for p in run_result["out"].iterdir()) == ["person"]
+
+
+def test_meshes_are_in_the_display_frame_with_uncertainty_colours(run_result):
+    folder = run_result["out"] / "person"
+    arrays = np.load(folder / "prediction.npz")
+    mode = trimesh.load(folder / "mode.ply", process=False)
+    assert mode.vertices.shape == (NUM_VERTICES, 3)
+    np.testing.assert_allclose(mode.vertices, to_display_frame(arrays["mode_vertices"]), atol=1e-5)
+    np.testing.assert_array_equal(mode.faces, arrays["faces"])
+    obj = trimesh.load(folder / "mode.obj", process=False)
+    assert obj.vertices.shape == (NUM_VERTICES, 3)
+    glb = trimesh.load(folder / "mode.glb", force="mesh", process=False)
+    assert glb.vertices.shape == (NUM_VERTICES, 3)
+    sample = trimesh.load(folder / "samples" / "sample_002.ply", process=False)
+    np.testing.assert_allclose(
+        sample.vertices, to_display_frame(arrays["sample_vertices"][2]), atol=1e-5
+    )
+    coloured = trimesh.load(folder / "mode_uncertainty.ply", process=False)
+    colours = coloured.visual.vertex_colors[:, :3]
+    expected = UncertaintyColourScale().colours_uint8(arrays["uncertainty"].astype(np.float64))
+    np.testing.assert_array_equal(colours, expected)
+
+
+def test_npz_holds_the_distribution(run_result):
+    arrays = np.load(run_result["out"] / "person" / "prediction.npz")
+    expected = {
+        "F": (23, 3, 3), "shape_mean": (10,), "shape_std": (10,), "global_orient": (3, 3),
+        "camera": (3,), "crop_centre": (2,), "crop_side": (), "crop_size": (),
+        "keypoints": (17, 2), "confidences": (17,), "uncertainty": (NUM_VERTICES,),
+        "mode_vertices": (NUM_VERTICES, 3), "mode_keypoints3d": (17, 3),
+        "mode_keypoints2d": (17, 2), "sample_vertices": (SAMPLES, NUM_VERTICES, 3),
+        "sample_keypoints2d": (SAMPLES, 17, 2), "sample_body_pose": (SAMPLES, 23, 3, 3),
+    }  # fmt: skip
+    for key, shape in expected.items():
+        assert arrays[key].shape == shape, key
+    assert int(arrays["crop_size"]) == 64
+    assert (arrays["shape_std"] > 0).all()
+    assert (arrays["uncertainty"] > 0).all()
+    rotation = arrays["global_orient"].astype(np.float64)
+    np.testing.assert_allclose(rotation @ rotation.T, np.eye(3), atol=1e-4)
+
+
+def test_reprojected_keypoints_round_trip_through_the_crop(run_result, scene):
+    folder = run_result["out"] / "person"
+    arrays = np.load(folder / "prediction.npz")
+    summary = json.loads((folder / "summary.json").read_text())
+    crop = CropTransform(
+        tuple(summary["crop"]["centre"]), summary["crop"]["side"], summary["crop"]["size"]
+    )
+    # The crop is the training rule applied to the (true) detected keypoints.
+    expected_crop = CropTransform.from_keypoints(scene.keypoints2d, size=64, image_size=(384, 512))
+    np.testing.assert_allclose(crop.centre, expected_crop.centre, atol=1e-4)
+    assert crop.side == pytest.approx(expected_crop.side, abs=1e-4)
+    # Photo pixels -> crop pixels gives back the network's own weak-perspective projection.
+    camera = torch.from_numpy(arrays["camera"]).double()[None]
+    points = torch.from_numpy(arrays["mode_keypoints3d"]).double()[None]
+    in_crop = ndc_to_pixels(weak_perspective_project(points, camera), 64)[0].numpy()
+    photo = np.asarray(summary["keypoints"]["mode_reprojected"])
+    np.testing.assert_allclose(crop.image_to_crop(photo), in_crop, atol=2e-3)
+    np.testing.assert_allclose(crop.crop_to_image(in_crop), photo, atol=2e-2)
+    np.testing.assert_allclose(arrays["mode_keypoints2d"], photo, atol=1e-3)
+
+
+def test_summary_json(run_result, checkpoint, photos):
+    summary = json.loads((run_result["out"] / "person" / "summary.json").read_text())
+    assert summary["image"] == str(photos["person"])
+    assert summary["image_size"] == {"width": 384, "height": 512}
+    assert len(summary["person"]["detected_bbox"]) == 4
+    assert "--bbox" in summary["person"]["note"]
+    assert np.asarray(summary["keypoints"]["detected"]).shape == (17, 2)
+    assert len(summary["keypoints"]["confidences"]) == 17
+    uncertainty = np.load(run_result["out"] / "person" / "prediction.npz")["uncertainty"]
+    assert summary["uncertainty"]["mean_m"] == pytest.approx(uncertainty.mean(), rel=1e-4)
+    assert summary["uncertainty"]["max_m"] == pytest.approx(uncertainty.max(), rel=1e-4)
+    assert summary["uncertainty"]["colour_scale"]["maximum_m"] == pytest.approx(0.10)
+    assert summary["model"] == str(checkpoint)
+    assert summary["samples"] == SAMPLES and summary["seed"] == 3
+    assert summary["uncertainty"]["samples"] == 20
+    assert "y up" in summary["frames"].lower()
+    assert set(summary["timings"]) >= {"predict_s", "sample_s", "overview_s", "total_s"}
+    for name in summary["files"]:
+        assert (run_result["out"] / "person" / name).is_file(), name
+    assert "samples/sample_000.glb" in summary["files"]
+
+
+def test_overview_png(run_result):
+    image = np.asarray(Image.open(run_result["out"] / "person" / "overview.png"))
+    height, width, channels = image.shape
+    assert channels == 3
+    assert 480 < height < 600 and 900 < width < 1800
+    # The renders contain mesh colours from the viridis ramp, not only background.
+    assert len(np.unique(image.reshape(-1, 3), axis=0)) > 500
+
+
+def test_missing_model_exits_2_without_traceback(photos, tmp_path, capsys, fake_predictor_factory,
+                                                monkeypatch):  # fmt: skip
+    monkeypatch.setattr(cli, "load_predictor", fake_predictor_factory)
+    code = cli.main([str(photos["person"]), "--out", str(tmp_path), "--model", "nope.pt"])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert "cannot load the model" in captured.err and "nope.pt" in captured.err
+    assert "Traceback" not in captured.err
+    assert not any(tmp_path.iterdir())
+
+
+def test_real_loader_reports_a_missing_model(photos, tmp_path, capsys):
+    code = cli.main([str(photos["person"]), "--out", str(tmp_path), "--model", "nope.pt"])
+    assert code == 2
+    assert "nope.pt" in capsys.readouterr().err
+
+
+def test_missing_input_only_exits_1(photos, tmp_path, capsys, fake_predictor_factory,
+                                    checkpoint, monkeypatch):  # fmt: skip
+    monkeypatch.setattr(cli, "load_predictor", fake_predictor_factory)
+    code = cli.main([str(photos["missing"]), "--out", str(tmp_path), "--model", str(checkpoint)])
+    captured = capsys.readouterr()
+    assert code == 1
+    assert "missing.jpg" in captured.err and "Traceback" not in captured.err
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--format", "stl"], "--format"),
+        (["--bbox", "1", "2", "3"], "--bbox"),
+        (["--bbox", "10,10,5,20"], "x1 > x0"),
+        (["--samples", "-1"], "--samples"),
+        (["--uncertainty-samples", "1"], "--uncertainty-samples"),
+    ],
+)
+def test_usage_errors_exit_2(photos, tmp_path, capsys, arguments, message):
+    code = cli.main([str(photos["person"]), "--out", str(tmp_path), *arguments])
+    assert code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_bbox_reaches_the_detector(photos, tmp_path, checkpoint, scene, monkeypatch, capsys):
+    detectors = []
+
+    def factory(model, device):
+        predictor = cli_factory(model, device)
+        detectors.append(predictor.detector)
+        return predictor
+
+    from hkpd.prediction.predictor import Predictor
+    from hkpd.training.checkpoint import load_network
+
+    def cli_factory(model, device):
+        network, _ = load_network(model, "cpu")
+        return Predictor(network, "cpu", detector=TruthDetector(scene.keypoints2d))
+
+    monkeypatch.setattr(cli, "load_predictor", factory)
+    code = cli.main(
+        [str(photos["person"]), "--out", str(tmp_path), "--model", str(checkpoint),
+         "--samples", "0", "--format", "npz", "--bbox", "100,120", "290", "480",
+         "--uncertainty-samples", "2"]
+    )  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert detectors[0].calls == [(100.0, 120.0, 290.0, 480.0)]
+    summary = json.loads((tmp_path / "person" / "summary.json").read_text())
+    assert summary["person"]["search_bbox"] == [100.0, 120.0, 290.0, 480.0]
+    assert not list(tmp_path.glob("person/*.ply"))
+    assert "sample_vertices" not in np.load(tmp_path / "person" / "prediction.npz")
