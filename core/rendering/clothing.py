@@ -253,8 +253,13 @@ class ClothingTextureSampler:
         behind_head = (centre[:, 2][None] < hair_back) & (height > hair_nape)
         in_hair = features["is_head"] & ((height > hairline) | behind_head) & ~bald
         in_shoes = features["is_foot"] & shoes
-        code = in_top * (top_bit + 1) + in_bottom * (bottom_bit + 3) + in_hair * 5 + in_shoes * 6
-        code = code + torch.arange(count, device=device)[:, None] * table.shape[1]
+        # One byte per face: 0 skin, 1-2 top, 3-4 bottom, 5 hair, 6 shoes.
+        byte = torch.uint8
+        code = in_top.to(byte) * (top_bit + 1)
+        code += in_bottom.to(byte) * (bottom_bit + 3)
+        code += in_hair.to(byte) * 5
+        code += in_shoes.to(byte) * 6
+        code = code.long() + torch.arange(count, device=device)[:, None] * table.shape[1]
         albedo = table.reshape(-1, 3).clamp(0.0, 1.0).index_select(0, code.view(-1))
         return albedo.view(count, self.num_faces, 3)
 
@@ -322,14 +327,14 @@ class ClothingTextureSampler:
 
     @staticmethod
     def _pattern_bits(parameters: dict[str, torch.Tensor], centre: torch.Tensor) -> torch.Tensor:
-        """``(B, F)`` long 0/1: the garment colour of each face.
+        """``(B, F)`` uint8 0/1: the garment colour of each face.
 
         With ``u_k = c · d_k / p_k + φ_k`` (c the face's rest-pose centre): stripes
         ``frac(u_1) < duty``, checks ``(frac(u_1) < ½) xor (frac(u_2) < ½)``, noise
         ``Σ_k sin(2π u_k) > t``; plain is 0. Only the bodies wearing a pattern pay for it.
         """
         kind = parameters["kind"]
-        bits = torch.zeros(kind.shape[0], centre.shape[0], dtype=torch.long, device=centre.device)
+        bits = torch.zeros(kind.shape[0], centre.shape[0], dtype=torch.uint8, device=centre.device)
         for pattern, waves_needed in ((1, 1), (2, 2), (3, 3)):
             bodies = (kind == pattern).nonzero().squeeze(1)
             if bodies.numel() == 0:
@@ -345,5 +350,5 @@ class ClothingTextureSampler:
                 value = halves[:, 0] ^ halves[:, 1]
             else:
                 value = torch.sin(2.0 * torch.pi * waves).sum(dim=1) > threshold
-            bits[bodies] = value.long()
+            bits[bodies] = value.to(torch.uint8)
         return bits
