@@ -41,7 +41,7 @@ BACKGROUND = (246, 246, 244)
 TEXT = (30, 30, 30)
 MODE_COLOUR = (235, 60, 40)
 SAMPLE_COLOUR = (255, 170, 40)
-SAMPLE_ALPHA = 90
+SAMPLE_ALPHA = 120
 VIEW_DISTANCE_M = 4.0
 """Distance of the virtual camera from the mesh centre in the mesh renders, metres."""
 
@@ -265,7 +265,12 @@ def make_overview(
     draw = ImageDraw.Draw(canvas)
     font = _font(max(12, height // 30))
     small = _font(max(11, height // 36))
-    titles = ["photo: detected keypoints, mode and samples", "mode: front", "mode: side", ""]
+    titles = [
+        "photo: detected keypoints, mode and samples",
+        "mode: front",
+        "mode: side (from the right)",
+        "",
+    ]
     x = gap
     for panel, title in zip(panels, titles, strict=True):
         canvas.paste(Image.fromarray(panel), (x, title_height))
