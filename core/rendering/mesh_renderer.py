@@ -4,13 +4,15 @@ per-pixel face index, body-part map, mask and depth, on CPU or CUDA with the sam
 Visibility comes from :mod:`hkpd.rendering.rasterizer` (exact coverage of pixel centres,
 perspective-correct z-buffer). Colour is one Lambert + Blinn-Phong shade per face
 (:func:`hkpd.rendering.lighting.shade`) from the face's albedo and, by default, a smoothed
-normal: the mean of the face's three area-weighted vertex normals. The viewing direction for the
-highlights is taken once per image (camera to the mesh's mean vertex), a cheap approximation
-that moves highlights by a few pixels at most. Faces at 256 px are mostly
-sub-pixel to 2 px wide, so per-face shading is visually per-pixel shading; the smoothed normals
-avoid the faceting that raw face normals print into the image (and into its Canny edges) on
-coarse parts of the mesh. Nothing is anti-aliased: silhouettes and texture boundaries are hard
-pixel steps, which is what an edge detector downstream wants.
+normal: the mean of the face's three area-weighted vertex normals. Faces at 256 px are mostly
+sub-pixel to 2 px wide, so per-face shading looks like per-pixel shading; the smoothed normals
+reduce the faceting that raw face normals print into the image (and into its Canny edges). The
+viewing direction for the highlights is taken once per image (camera to the mesh's mean
+vertex), a cheap approximation that shifts highlights slightly. Nothing is anti-aliased:
+silhouettes and texture boundaries are hard pixel steps, which suits an edge detector.
+
+Measured speed and the comparison with other designs: :mod:`hkpd.rendering.rasterizer` and
+``docs/rendering.md``.
 """
 
 from __future__ import annotations
