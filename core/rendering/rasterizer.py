@@ -16,7 +16,7 @@ Method (edge functions over per-triangle bounding boxes, with a packed-key z-buf
 3. For a group, the three barycentric coordinates, two image-border guards and the inverse depth
    (affine in screen space) are affine functions of the integer pixel offset inside the box;
    they are evaluated for all candidates with one batched matrix product
-   ``(n, 6, 3) @ (3, w*h)``, in coordinates local to the box (small numbers, so float32 keeps
+   ``(6, n, 3) @ (3, w*h)``, in coordinates local to the box (small numbers, so float32 keeps
    ~1e-5 px accuracy even for sub-pixel triangles).
 4. A candidate inside the triangle gets the key ``bits(1/z) << 32 | (face + 1)``: the bit
    pattern of a positive float32 orders like the float, so ``scatter_reduce(..., "amax")`` over
@@ -41,9 +41,9 @@ A: splat 7 points per triangle, same keys   10.8         15.9%           312 per
 ==========================================  ===========  ==============  ===============
 
 (B's ~1.6 interior empty pixels per image are all true gaps between body parts: none lies
-inside a front-facing triangle in float64. Library options: PyTorch3D has no CPU wheels on
-PyPI and is a compiled extension; nvdiffrast is CUDA/OpenGL only; OpenGL renderers need a
-context per worker and give no batched torch tensors.)
+inside a front-facing triangle in float64. Library options: PyTorch3D is a compiled C++/CUDA
+extension; nvdiffrast has no CPU rasteriser; OpenGL renderers need a context per worker and give
+no batched torch tensors.)
 """
 
 from __future__ import annotations
