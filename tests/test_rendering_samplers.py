@@ -195,3 +195,16 @@ def test_lighting_device_move_keeps_values():
         for name in ("ambient", "diffuse", "specular", "direction", "colour", "shininess")
     )
     assert lighting.batch_size == 3
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
+def test_samplers_take_a_cpu_generator_for_cuda_output(clothing: ClothingTextureSampler):
+    generator = torch.Generator().manual_seed(0)
+    translation, focal = sample_cameras(4, generator, "cuda")
+    lighting = sample_lighting(4, generator, "cuda")
+    albedo = clothing.sample(4, generator, "cuda")
+    backgrounds = BackgroundSource().sample(4, generator, 32, "cuda")
+    assert translation.is_cuda and focal.is_cuda and lighting.ambient.is_cuda
+    assert albedo.is_cuda and backgrounds.is_cuda
+    cpu = clothing.sample(4, torch.Generator().manual_seed(0).manual_seed(0), "cpu")
+    assert cpu.shape == albedo.shape

@@ -41,7 +41,8 @@ def sample_cameras(
 
     Args:
         count: number of cameras B.
-        generator: torch random generator on ``device`` (None: the global one).
+        generator: torch random generator (None: the global one); the numbers are drawn on its
+            device and moved to ``device``.
         device: where the tensors live.
         mean_translation, xy_std, z_half_range: translation distribution (module docstring).
         focal_px: focal length in pixels for every camera.
@@ -52,9 +53,10 @@ def sample_cameras(
     """
     if count < 0:
         raise ValueError(f"count must be non-negative, got {count}")
-    mean = torch.tensor(mean_translation, dtype=torch.float32, device=device)
-    noise_xy = torch.randn(count, 2, generator=generator, device=device) * xy_std
-    noise_z = (torch.rand(count, 1, generator=generator, device=device) * 2.0 - 1.0) * z_half_range
-    translation = mean + torch.cat((noise_xy, noise_z), dim=1)
+    draw = generator.device if generator is not None else torch.device(device)
+    mean = torch.tensor(mean_translation, dtype=torch.float32, device=draw)
+    noise_xy = torch.randn(count, 2, generator=generator, device=draw) * xy_std
+    noise_z = (torch.rand(count, 1, generator=generator, device=draw) * 2.0 - 1.0) * z_half_range
+    translation = (mean + torch.cat((noise_xy, noise_z), dim=1)).to(device)
     focal = torch.full((count,), float(focal_px), dtype=torch.float32, device=device)
     return translation, focal

@@ -162,22 +162,24 @@ class ClothingTextureSampler:
 
         Args:
             count: number of bodies B.
-            generator: torch random generator on ``device`` (None: the global one).
+            generator: torch random generator (None: the global one); the random numbers are
+                drawn on its device (a CPU generator works for CUDA output too).
             device: where the albedo is made.
 
         Returns:
             ``(B, F, 3)`` float32 albedo in [0, 1].
         """
         device = torch.device(device)
+        draw = generator.device if generator is not None else device
         features = self._features(device)
         marks = self.landmarks
 
         def uniform(low: float, high: float, *shape: int) -> torch.Tensor:
             shape = shape or (count,)
-            return low + (high - low) * torch.rand(shape, generator=generator, device=device)
+            return low + (high - low) * torch.rand(shape, generator=generator, device=draw)
 
         def choice(probabilities: tuple[float, ...]) -> torch.Tensor:
-            weights = torch.tensor(probabilities, device=device)
+            weights = torch.tensor(probabilities, device=draw)
             return torch.multinomial(weights, count, replacement=True, generator=generator)
 
         # Outfit geometry (per body).
@@ -210,14 +212,12 @@ class ClothingTextureSampler:
         hair_nape = marks["neck"] + uniform(0.02, 0.12)[:, None]
 
         # Colour table per body: skin, top (2 colours), bottom (2), hair, shoes.
-        skin = self._palette(SKIN_TONES, count, 0.04, generator, device)
-        hair = self._palette(HAIR_COLOURS, count, 0.04, generator, device)
-        shoe_colour = self._random_colours(count, generator, device, neutral=0.7)
-        top_colours = self._random_colours(
-            2 * count, generator, device, NEUTRAL_GARMENT_PROBABILITY
-        )
+        skin = self._palette(SKIN_TONES, count, 0.04, generator, draw)
+        hair = self._palette(HAIR_COLOURS, count, 0.04, generator, draw)
+        shoe_colour = self._random_colours(count, generator, draw, neutral=0.7)
+        top_colours = self._random_colours(2 * count, generator, draw, NEUTRAL_GARMENT_PROBABILITY)
         bottom_colours = self._random_colours(
-            2 * count, generator, device, NEUTRAL_GARMENT_PROBABILITY
+            2 * count, generator, draw, NEUTRAL_GARMENT_PROBABILITY
         )
         top_colours, bottom_colours = (
             top_colours.view(count, 2, 3),
@@ -232,12 +232,29 @@ class ClothingTextureSampler:
         table = torch.where(grey[:, None, None], grey_level, table)
 
         # Patterns: which of a garment's two colours each face takes.
-        top_pattern = self._pattern_parameters(count, generator, device)
-        bottom_pattern = self._pattern_parameters(count, generator, device)
+        top_pattern = self._pattern_parameters(count, generator, draw)
+        bottom_pattern = self._pattern_parameters(count, generator, draw)
         bottom_pattern = {
             name: torch.where(jumpsuit.view((count,) + (1,) * (value.dim() - 1)), top, value)
             for (name, value), top in zip(bottom_pattern.items(), top_pattern.values(), strict=True)
         }
+        # Per-body parameters to the output device; per-face work happens there.
+        (sleeve_end, hem_height, waist, neckline, turtleneck, shoes, bald, hairline) = (
+            value.to(device)
+            for value in (
+                sleeve_end,
+                hem_height,
+                waist,
+                neckline,
+                turtleneck,
+                shoes,
+                bald,
+                hairline,
+            )
+        )
+        hair_back, hair_nape, table = hair_back.to(device), hair_nape.to(device), table.to(device)
+        top_pattern = {name: value.to(device) for name, value in top_pattern.items()}
+        bottom_pattern = {name: value.to(device) for name, value in bottom_pattern.items()}
         centre = features["centre"]
         top_bit = self._pattern_bits(top_pattern, centre)
         bottom_bit = self._pattern_bits(bottom_pattern, centre)

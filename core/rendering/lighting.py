@@ -86,12 +86,15 @@ def sample_lighting(
 
     Args:
         count: number of images B.
-        generator: torch random generator on ``device`` (None: the global one).
+        generator: torch random generator (None: the global one); the numbers are drawn on its
+            device and moved to ``device``.
         device: where the tensors live.
 
     Returns:
         :class:`Lighting` with ``(B,)`` / ``(B, 3)`` float32 tensors.
     """
+    target = torch.device(device)
+    device = generator.device if generator is not None else target
     ambient = _uniform(count, AMBIENT_RANGE, generator, device)
     diffuse = _uniform(count, DIFFUSE_RANGE, generator, device)
     specular = _uniform(count, SPECULAR_RANGE, generator, device)
@@ -107,7 +110,7 @@ def sample_lighting(
     colour = LIGHT_COLOUR_RANGE[0] + (LIGHT_COLOUR_RANGE[1] - LIGHT_COLOUR_RANGE[0]) * torch.rand(
         count, 3, generator=generator, device=device
     )
-    return Lighting(ambient, diffuse, specular, direction, colour, shininess)
+    return Lighting(ambient, diffuse, specular, direction, colour, shininess).to(target)
 
 
 def shade(
