@@ -394,6 +394,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 result = PhotoResult(image=image, error=_one_line(error))
             except Exception as error:  # unexpected: still one line, and go on
                 result = PhotoResult(image=image, error=f"{type(error).__name__}: {error}")
+            if result.error is not None and result.error.startswith(f"{image}: "):
+                result.error = result.error[len(f"{image}: ") :]  # the path is said once
             results.append(result)
             if result.error is not None:
                 tqdm.write(f"{PROG}: FAILED {image}: {result.error}", file=sys.stderr)

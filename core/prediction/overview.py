@@ -254,8 +254,8 @@ def make_overview(
         photo, crop, keypoints, confidences, mode_keypoints2d, sample_keypoints2d, height
     )
     front, side, masks = render_uncertainty_views(mode_vertices, faces, values, scale, height)
-    front = _trim_columns(front, masks[0], height // 3, height // 20)
-    side = _trim_columns(side, masks[1], height // 3, height // 20)
+    front = _trim_columns(front, masks[0], int(height * 0.42), height // 20)
+    side = _trim_columns(side, masks[1], int(height * 0.42), height // 20)
     bar = draw_colour_bar(scale, height)
     gap = max(8, height // 40)
     title_height, footer_height = max(28, height // 16), max(26, height // 18)
