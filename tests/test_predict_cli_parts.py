@@ -119,3 +119,11 @@ def test_parse_bbox_and_formats():
     assert parse_formats(["GLB", "obj,glb"]) == ("glb", "obj")
     with pytest.raises(UsageError, match="stl"):
         parse_formats(["stl"])
+
+
+def test_no_images_in_folder_is_a_usage_error(tmp_path, capsys):
+    from hkpd.prediction.cli import main
+
+    (tmp_path / "empty").mkdir()
+    assert main([str(tmp_path / "empty"), "--out", str(tmp_path / "out")]) == 2
+    assert "no images found" in capsys.readouterr().err

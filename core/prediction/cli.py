@@ -88,7 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--bbox",
         nargs="+",
-        metavar="X0 Y0 X1 Y1",
+        metavar="COORD",
         help="look for the person only inside this box, original-photo pixels (to pick one of "
         "several people); four numbers, spaces or commas",
     )
@@ -359,7 +359,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         predictor = load_predictor(args.model, args.device)
     except (FileNotFoundError, CheckpointError, ValueError, RuntimeError, KeyError) as error:
-        print(f"{PROG}: error: cannot load the model: {_one_line(error)}", file=sys.stderr)
+        hint = "" if args.model else " (choose a checkpoint with --model PATH)"
+        print(f"{PROG}: error: cannot load the model: {_one_line(error)}{hint}", file=sys.stderr)
         return 2
     model_path = args.model or "shipped model (hkpd.assets/models/hkpd_hierarchical.pt)"
 
