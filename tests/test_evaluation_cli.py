@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import torch
 
 from hkpd.evaluation.cli import main as eval_main
 from hkpd.evaluation.real_photos import load_coco_people
@@ -21,6 +22,7 @@ def test_eval_prints_a_markdown_table(tmp_path, capsys) -> None:
     report = tmp_path / "report.md"
     code = eval_main([str(checkpoint), "--count", "3", "--samples", "2", "--out", str(report)])
     assert code == 0
+    assert torch.is_grad_enabled()  # the command must not switch autograd off for its caller
     text = report.read_text()
     assert "MPJPE-SC (mm)" in text and "2D joint err. samples (px)" in text
     row = next(line for line in text.splitlines() if line.startswith(f"| {checkpoint}"))

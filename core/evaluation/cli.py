@@ -88,8 +88,17 @@ def main(argv: list[str] | None = None) -> int:
     except (FileNotFoundError, ValueError) as error:
         print(f"hkpd-eval: error: {error}", file=sys.stderr)
         return 2
+    with torch.no_grad():
+        text = _evaluate(arguments, device)
+    print(text)
+    if arguments.out:
+        arguments.out.write_text(text)
+    return 0
+
+
+def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
+    """Run the requested evaluations and return the markdown report."""
     report = []
-    torch.set_grad_enabled(False)
     if not arguments.no_synthetic:
         rows = {}
         for checkpoint in arguments.checkpoints:
@@ -120,11 +129,7 @@ def main(argv: list[str] | None = None) -> int:
             f"### Real photos: {arguments.coco} ({len(people)} people with >= 12 visible "
             "keypoints; 2D errors on visible keypoints)\n\n" + markdown_table(rows, columns)
         )
-    text = "\n".join(report)
-    print(text)
-    if arguments.out:
-        arguments.out.write_text(text)
-    return 0
+    return "\n".join(report)
 
 
 __all__ = ["label", "main"]
