@@ -223,3 +223,13 @@ def test_tiny_network_overfits_a_fixed_batch(body, single_thread):
     # The samples loss runs on the trained network too.
     terms = compute_losses(network(batch.proxy), batch, body, LossWeights(), num_samples=2)
     assert torch.isfinite(terms["total"])
+
+
+def test_losses_work_inside_autocast(body, batch):
+    truth = ground_truth_output(batch)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        inside = compute_losses(truth, batch, body, STAGE_ONE_AND_3D)
+    outside = compute_losses(truth, batch, body, STAGE_ONE_AND_3D)
+    for name, value in outside.items():
+        assert inside[name].dtype == torch.float32
+        torch.testing.assert_close(inside[name], value)

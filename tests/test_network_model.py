@@ -173,3 +173,14 @@ def test_hierarchical_head_is_deterministic_per_example():
         together = network(x).F
         alone = network(x[2:3]).F
     torch.testing.assert_close(together[2:3], alone, atol=1e-5, rtol=1e-5)
+
+
+def test_mixed_precision_outputs_are_full_precision(network):
+    """Under autocast the heads still decode (and SVD) in float32."""
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        output = network(torch.rand(2, 18, 64, 64))
+    for name, value in vars(output).items():
+        assert value.dtype == torch.float32, name
+        assert torch.isfinite(value).all(), name
+    output.F.sum().backward()
+    assert network.backbone.stem[0].weight.grad is not None

@@ -31,7 +31,13 @@ from hkpd.kinematic_tree import ancestors, depth_levels, validate_parents
 from hkpd.network.grouped_linear import GroupedLinear
 from hkpd.network.independent_head import init_output_layer
 from hkpd.network.output import NetworkOutput
-from hkpd.network.output_decoding import decode_globals, decode_pose, global_bias, global_size
+from hkpd.network.output_decoding import (
+    decode_globals,
+    decode_pose,
+    full_precision,
+    global_bias,
+    global_size,
+)
 
 ANCESTOR_FEATURES = 9 + 3 + 9
 """Per ancestor: principal axes U (flattened), proper singular values S, mode (flattened)."""
@@ -42,11 +48,15 @@ level's ``F`` before its children see it."""
 
 
 def ancestor_features(F: torch.Tensor) -> torch.Tensor:
-    """``(..., 3, 3)`` parameters to ``(..., 21)`` features ``[U, sign(S) log(1+|S|), U V^T]``."""
-    U, S, V = proper_svd(F)
-    mode = U @ V.transpose(-1, -2)
-    squashed = torch.sign(S) * torch.log1p(S.abs())
-    return torch.cat((U.flatten(-2), squashed, mode.flatten(-2)), dim=-1)
+    """``(..., 3, 3)`` parameters to ``(..., 21)`` features ``[U, sign(S) log(1+|S|), U V^T]``.
+
+    Computed in full precision even under ``torch.autocast``.
+    """
+    with torch.autocast(F.device.type, enabled=False):
+        U, S, V = proper_svd(full_precision(F))
+        mode = U @ V.transpose(-1, -2)
+        squashed = torch.sign(S) * torch.log1p(S.abs())
+        return torch.cat((U.flatten(-2), squashed, mode.flatten(-2)), dim=-1)
 
 
 class _LevelStreams(nn.Module):

@@ -8,6 +8,10 @@ Every head ends in a linear layer whose raw outputs are decoded here:
 - camera ``[s, tx, ty]``: ``s = softplus(raw_s)`` (positive), ``t`` as is;
 - pose: ``F = raw + c · I`` per joint, with ``c`` the initial concentration.
 
+Decoding always happens in at least float32: under mixed precision (``torch.autocast``) the final
+layers' raw outputs are half or bfloat16, but distribution parameters go through SVDs and
+normalisers that need full precision.
+
 The ``*_bias`` helpers give the final layers' initial biases so that an untrained network predicts
 a sensible starting point: an upright body facing the camera (``FRONTAL_GLOBAL_ORIENT``), a
 weak-perspective scale that makes a 1.7 m body span most of the crop, and a broad shape
@@ -51,6 +55,11 @@ def global_bias(num_betas: int, shape_std: float, camera_scale: float) -> torch.
     return bias
 
 
+def full_precision(x: torch.Tensor) -> torch.Tensor:
+    """``x`` as float32 if it is half or bfloat16, else unchanged (float64 stays float64)."""
+    return x.float() if x.dtype in (torch.float16, torch.bfloat16) else x
+
+
 def rotation_from_6d(raw: torch.Tensor) -> torch.Tensor:
     """``(..., 6)`` two stacked 3-vectors (first and second column) to ``(..., 3, 3)`` rotations."""
     columns = raw.unflatten(-1, (2, 3)).transpose(-1, -2)  # (..., 3, 2)
@@ -66,6 +75,7 @@ def decode_globals(
         ``shape_mean (B, K)``, ``shape_std (B, K)`` (> 0), ``global_orient (B, 3, 3)``,
         ``camera (B, 3)`` as ``[s > 0, tx, ty]``.
     """
+    raw = full_precision(raw)
     mean = raw[:, :num_betas]
     std = functional.softplus(raw[:, num_betas : 2 * num_betas]) + MIN_SHAPE_STD
     orient = rotation_from_6d(raw[:, 2 * num_betas : 2 * num_betas + ROTATION_6D])
@@ -76,5 +86,6 @@ def decode_globals(
 
 def decode_pose(raw: torch.Tensor, concentration: float) -> torch.Tensor:
     """``(..., 9)`` raw outputs to ``(..., 3, 3)`` matrix-Fisher parameters ``raw + c · I``."""
+    raw = full_precision(raw)
     eye = torch.eye(3, dtype=raw.dtype, device=raw.device)
     return raw.unflatten(-1, (3, 3)) + concentration * eye

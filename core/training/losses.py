@@ -24,6 +24,7 @@ from hkpd.camera_conventions import CROP_SIZE, pixels_to_ndc, weak_perspective_p
 from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
 from hkpd.kinematic_tree import BODY_PARENTS
 from hkpd.network.output import NetworkOutput
+from hkpd.network.output_decoding import full_precision
 from hkpd.synthesis.batch import TrainingBatch
 from hkpd.training.schedule import LossWeights
 
@@ -160,13 +161,30 @@ def compute_losses(
     Returns:
         ``{term: scalar}`` for each active term of :data:`hkpd.training.schedule.LOSS_TERMS`
         (unweighted) plus ``"total"`` (weighted sum), all connected to the graph.
+
+    The losses are computed in full precision with ``torch.autocast`` disabled, so they may be
+    called inside a mixed-precision region.
     """
+    with torch.autocast(output.F.device.type, enabled=False):
+        return _compute_losses(output, batch, body, weights, num_samples, crop_size, generator)
+
+
+def _compute_losses(
+    output: NetworkOutput,
+    batch: TrainingBatch,
+    body: BodyModel,
+    weights: LossWeights,
+    num_samples: int,
+    crop_size: int,
+    generator: torch.Generator | None,
+) -> dict[str, torch.Tensor]:
     if num_samples < 1 and weights.joints2d_samples > 0:
         raise ValueError(f"num_samples must be >= 1 for the samples loss, got {num_samples}")
     if output.batch_size != batch.batch_size:
         raise ValueError(
             f"prediction has batch size {output.batch_size}, targets {batch.batch_size}"
         )
+    output = NetworkOutput(**{name: full_precision(value) for name, value in vars(output).items()})
     terms: dict[str, torch.Tensor] = {}
     if weights.shape_nll > 0:
         terms["shape_nll"] = shape_nll(output.shape_mean, output.shape_std, batch.betas)
