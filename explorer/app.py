@@ -38,7 +38,10 @@ CAMERA_FOV_DEG = 40.0
 ASSUMED_ASPECT = 1.6
 """Canvas width / height the first view is framed for (a laptop browser window)."""
 FREE_CANVAS_FRACTION = 0.7
-"""Part of the canvas width not covered by the floating control panel."""
+"""Part of the canvas width not covered by the floating control panel (before a tab reports
+its canvas size)."""
+PANEL_WIDTH_PX = 420
+"""Width of viser's floating panel ("large" controls) plus its margin, CSS pixels."""
 SCREENSHOT_SIZE = (720, 1280)
 """``(height, width)`` of the screenshot requested from the browser."""
 
@@ -88,12 +91,14 @@ class ExplorerApp:
         self._placed_token = -1
         self._result: PredictionResult | None = None
         self._view: PosteriorView | None = None
+        self._framed: PhotoPlacement | None = None
         self.worker = CoalescingWorker(("image", "predict", "sample", "export"), self._job_failed)
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         self.scene = ExplorerScene(self.server)
         self.panels = ExplorerPanels(self.server, self)
         self.server.scene.on_rect_select(modifier="shift")(self._on_rect_select)
+        self.server.on_client_connect(lambda client: self._frame_client(client, wait_s=5.0))
         self._plain_drag = False
         self.state.set_image(image.shape[1], image.shape[0])
         self.panels.show_occluders((), self.state.image_size)
@@ -293,25 +298,35 @@ class ExplorerApp:
 
     # ------------------------------------------------------------------ helpers
     def _frame_camera(self, placement: PhotoPlacement) -> None:
-        """Point every camera at the photo, the bodies and the heatmap, left of the panel."""
-        left = placement.centre[0] - placement.width_m / 2 - 0.1
-        right = HEATMAP_OFFSET + 0.5
-        top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.25
-        bottom = min(placement.centre[1] - placement.height_m / 2, -1.25) - 0.1
-        tan_v = math.tan(math.radians(CAMERA_FOV_DEG) / 2)
-        tan_h = tan_v * ASSUMED_ASPECT
-        # The content should fill the part of the canvas the floating panel leaves free.
-        visible_width = (right - left) / FREE_CANVAS_FRACTION
-        distance = max(visible_width / (2 * tan_h), (top - bottom) / (2 * tan_v))
-        shift = (0.5 - FREE_CANVAS_FRACTION / 2) * 2 * distance * tan_h
-        centre = ((left + right) / 2 + shift, (top + bottom) / 2)
-        position = (centre[0], centre[1] + 0.1, distance)
-        look_at = (centre[0], centre[1], 0.0)
+        """Frame the photo, the bodies and the heatmap for new tabs and every open tab."""
+        with self._lock:
+            self._framed = placement
+        position, look_at = framing(placement, ASSUMED_ASPECT)
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
         for client in self.server.get_clients().values():
-            client.camera.position = position
-            client.camera.look_at = look_at
+            self._frame_client(client)
+
+    def _frame_client(self, client: viser.ClientHandle, wait_s: float = 0.0) -> None:
+        """Frame one tab for its own canvas shape (waiting up to ``wait_s`` for it to report)."""
+        with self._lock:
+            placement = self._framed
+        if placement is None:
+            return
+        deadline = time.monotonic() + wait_s
+        aspect, free = None, FREE_CANVAS_FRACTION
+        while aspect is None:
+            try:
+                aspect = client.camera.aspect
+                free = 1.0 - PANEL_WIDTH_PX / max(client.camera.image_width, 1)
+            except AssertionError:  # the browser has not reported its camera yet
+                if time.monotonic() >= deadline:
+                    aspect = ASSUMED_ASPECT
+                else:
+                    time.sleep(0.05)
+        position, look_at = framing(placement, aspect, float(np.clip(free, 0.5, 1.0)))
+        client.camera.position = position
+        client.camera.look_at = look_at
 
     @staticmethod
     def _notify(
@@ -322,6 +337,30 @@ class ExplorerApp:
         client.add_notification(
             title, body, auto_close_seconds=8.0 if error else 3.0, color="red" if error else None
         )
+
+
+def framing(
+    placement: PhotoPlacement, aspect: float, free_fraction: float = FREE_CANVAS_FRACTION
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """Camera ``(position, look_at)`` showing photo, bodies and heatmap left of the panel.
+
+    Args:
+        placement: where the photo is.
+        aspect: canvas width / height.
+        free_fraction: part of the canvas width left of the floating panel.
+    """
+    left = placement.centre[0] - placement.width_m / 2 - 0.1
+    right = HEATMAP_OFFSET + 0.5
+    top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.25
+    bottom = min(placement.centre[1] - placement.height_m / 2, -1.25) - 0.1
+    tan_v = math.tan(math.radians(CAMERA_FOV_DEG) / 2)
+    tan_h = tan_v * aspect
+    # The content should fill the part of the canvas that the floating panel leaves free.
+    visible_width = (right - left) / free_fraction
+    distance = max(visible_width / (2 * tan_h), (top - bottom) / (2 * tan_v))
+    shift = (0.5 - free_fraction / 2) * 2 * distance * tan_h
+    centre = ((left + right) / 2 + shift, (top + bottom) / 2)
+    return (centre[0], centre[1] + 0.1, distance), (centre[0], centre[1], 0.0)
 
 
 def photo_placement(result: PredictionResult, width: int, height: int) -> PhotoPlacement:

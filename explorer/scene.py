@@ -333,7 +333,7 @@ class ExplorerScene:
         for i in range(3):
             self.server.scene.add_label(
                 f"/body/joint_axes_label_{i}",
-                f"{axes.concentrations[i]:.0f}",
+                _concentration_text(axes.concentrations[i]),
                 position=tuple((ends[i] + 0.02 * axes.axes[:, i]).tolist()),
                 font_screen_scale=0.9,
                 anchor="center-center",
@@ -361,3 +361,8 @@ class ExplorerScene:
             thickness_units="screen",
             visible=self.show_reprojection,
         )
+
+
+def _concentration_text(value: float) -> str:
+    """Two significant digits below 10 (``2.4``), whole numbers above (``285``)."""
+    return f"{value:.2g}" if value < 10 else f"{value:.0f}"

@@ -171,8 +171,8 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         loosened = arm_uncertainty(app, double.body)
         assert loosened > occluded, (occluded, loosened)
 
-        # 3. Screenshot: the 3D canvas must show something.
-        time.sleep(1.0)
+        # 3. Screenshot: the 3D canvas must show something (software WebGL needs a moment).
+        time.sleep(3.0)
         shot = page.screenshot()
         # The panel's screenshot button renders in the browser and sends a PNG back.
         app.request_screenshot(next(iter(app.server.get_clients().values())))
