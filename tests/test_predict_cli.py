@@ -221,6 +221,7 @@ def test_reprojected_keypoints_round_trip_through_the_crop(run_result, scene):
 def test_summary_json(run_result, checkpoint, photos):
     summary = json.loads((run_result["out"] / "person" / "summary.json").read_text())
     assert summary["image"] == str(photos["person"])
+    assert Path(summary["image_absolute"]) == photos["person"].resolve()
     assert summary["image_size"] == {"width": 384, "height": 512}
     assert len(summary["person"]["detected_bbox"]) == 4
     assert "--bbox" in summary["person"]["note"]

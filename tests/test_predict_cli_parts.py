@@ -127,3 +127,23 @@ def test_no_images_in_folder_is_a_usage_error(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     assert main([str(tmp_path / "empty"), "--out", str(tmp_path / "out")]) == 2
     assert "no images found" in capsys.readouterr().err
+
+
+def test_ctrl_c_stops_cleanly(tmp_path, capsys, monkeypatch):
+    from hkpd.prediction import cli
+
+    closed = []
+
+    class Dummy:
+        def close(self):
+            closed.append(True)
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "load_predictor", lambda model, device: Dummy())
+    monkeypatch.setattr(cli, "predict_photo", interrupt)
+    (tmp_path / "a.jpg").write_bytes(b"x")
+    assert cli.main([str(tmp_path / "a.jpg"), "--out", str(tmp_path / "out")]) == 130
+    assert "interrupted after 0 of 1" in capsys.readouterr().err
+    assert closed == [True]

@@ -279,6 +279,7 @@ def predict_photo(
     crop = posterior.crop
     summary = {
         "image": str(image),
+        "image_absolute": str(Path(image).resolve()),
         "image_size": {"width": detection.image_size[0], "height": detection.image_size[1]},
         "person": {
             "detected_bbox": detection.person_box,
@@ -407,6 +408,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     " [several people? pick one with --bbox x0 y0 x1 y1]",
                     file=sys.stdout,
                 )
+    except KeyboardInterrupt:
+        print(f"\n{PROG}: interrupted after {len(results)} of {len(images)} photos; the "
+              "folders written so far are complete", file=sys.stderr)  # fmt: skip
+        return 130
     finally:
         closer = getattr(predictor, "close", None)
         if closer is not None:
