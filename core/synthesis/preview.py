@@ -64,7 +64,7 @@ def skeleton_picture(
     return canvas
 
 
-def preview_grid(rendered: RenderedBatch, columns: int = 4) -> np.ndarray:
+def preview_grid(rendered: RenderedBatch, columns: int = 2) -> np.ndarray:
     """All samples of a rendered batch as one ``uint8`` RGB picture, four panels per sample."""
     tiles = []
     batch = rendered.batch
