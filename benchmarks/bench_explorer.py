@@ -65,14 +65,21 @@ class FrameRecorder:
                 with self._lock:
                     self.frames.append((time.perf_counter(), len(message)))
 
-    def delivered_after(self, start: float, timeout: float = 10.0) -> tuple[float, int]:
-        """(seconds from ``start`` to the last frame before a quiet gap, bytes received)."""
+    def delivered_after(
+        self, start: float, drawn: float, timeout: float = 10.0
+    ) -> tuple[float, int]:
+        """(seconds from ``start`` to the last frame, bytes received since ``start``).
+
+        The last frame is the last one before a quiet gap that arrived after ``drawn`` (when the
+        worker began pushing the final update), so early frames (the occluder's box is drawn
+        at once, the prediction only after the debounce) do not end the measurement.
+        """
         deadline = time.perf_counter() + timeout
         while time.perf_counter() < deadline:
             time.sleep(0.02)
             with self._lock:
                 after = [f for f in self.frames if f[0] >= start]
-            if after and time.perf_counter() - after[-1][0] > QUIET_S:
+            if after and after[-1][0] >= drawn and time.perf_counter() - after[-1][0] > QUIET_S:
                 return after[-1][0] - start, sum(size for _, size in after)
         raise TimeoutError("no update reached the client")
 
@@ -105,7 +112,7 @@ def main() -> None:
         app.sampling_changed(app.state.set_joint_exponent("left_elbow", -0.05 * (i % 10 + 1)))
         app.wait_idle(30)
         done = time.perf_counter() - start
-        seconds, size = recorder.delivered_after(start)
+        seconds, size = recorder.delivered_after(start, start + done - app.timings.draw)
         if i >= 2:  # warm-up
             delivered.append(seconds)
             computed.append(done)
@@ -123,7 +130,8 @@ def main() -> None:
         start = time.perf_counter()
         app.occluders_changed(app.state.move_occluder(occluder.ident, (249 - i, 210, 300, 261 + i)))
         app.wait_idle(30)
-        seconds, _ = recorder.delivered_after(start)
+        idle = time.perf_counter()
+        seconds, _ = recorder.delivered_after(start, idle - app.timings.draw)
         occ_delivered.append(seconds)
         occ_predict.append(app.timings.predict)
 
@@ -135,8 +143,9 @@ def main() -> None:
         time.sleep(0.01)
     last_event = time.perf_counter()
     app.wait_idle(30)
+    idle = time.perf_counter()
     burst_runs = app.worker.stats["sample"].run - runs_before
-    burst_tail, _ = recorder.delivered_after(last_event)
+    burst_tail, _ = recorder.delivered_after(last_event, idle - app.timings.draw)
 
     # 4. Heatmap transport.
     view = app.view
