@@ -1,7 +1,12 @@
 """From a photo to a body posterior: image loading, 2D keypoint detection, cropping, the
 `Predictor` and the `hkpd-predict` command.
 
-Implemented so far (the network-dependent `Predictor` and CLI come next):
+- :class:`Predictor` -> :class:`BodyPosterior`: the whole path, photo to a distribution over
+  bodies that samples meshes (:class:`BodyMeshes`) and maps them back to the photo.
+- ``hkpd-predict`` (:mod:`hkpd.prediction.cli`): the command line, with mesh/npz/JSON exports and
+  an overview picture.
+
+The pieces:
 
 - :func:`load_image` -> :class:`LoadedImage`: any path/array/PIL image as ``(H, W, 3)`` uint8
   RGB (EXIF orientation, grayscale, alpha on white, 16-bit, downscale of huge photos), with the
@@ -32,12 +37,16 @@ from hkpd.prediction.keypoint_detector import (
 )
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
 from hkpd.prediction.occluders import apply_occluders, points_under_boxes
+from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
+from hkpd.prediction.predictor import Predictor
 
 __all__ = [
     "BOX_CONFIDENCE_THRESHOLD",
     "COCO_FROM_BLAZEPOSE",
     "MAX_IMAGE_SIDE",
     "MIN_IMAGE_SIDE",
+    "BodyMeshes",
+    "BodyPosterior",
     "CropTransform",
     "ImageInputError",
     "KeypointDetection",
@@ -45,6 +54,7 @@ __all__ = [
     "LoadedImage",
     "NetworkInput",
     "NoPersonFoundError",
+    "Predictor",
     "apply_occluders",
     "load_image",
     "points_under_boxes",
