@@ -107,7 +107,11 @@ class ExplorerPanels:
 
         with gui.add_folder("Samples"):
             self.num_samples = gui.add_slider(
-                "Samples for heatmap", 10, MAX_SAMPLES, 10, state.num_samples
+                "Samples for heatmap",
+                min(10, state.num_samples),
+                MAX_SAMPLES,
+                1,
+                state.num_samples,
             )
             self.num_samples.on_update(
                 lambda _: app.sampling_changed(state.set_num_samples(self.num_samples.value))
