@@ -178,6 +178,24 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         app.request_screenshot(next(iter(app.server.get_clients().values())))
         assert app.wait_idle(60)
         assert app.last_screenshot is not None and app.last_screenshot.std() > 10
+
+        # 4. Uploads through the browser: a bad file is refused with a notification and the
+        # photo stays; a good one replaces it (and clears the occluders).
+        upload = page.locator("input[type=file]").first
+        upload.set_input_files(
+            files=[{"name": "notes.txt", "mimeType": "text/plain", "buffer": b"hello"}]
+        )
+        page.get_by_text("Photo not loaded").wait_for(timeout=20_000)
+        assert app.state.image_size == (384, 512)
+        assert len(app.state.snapshot().occluders) == 1
+        buffer = io.BytesIO()
+        Image.fromarray(np.full((300, 200, 3), 90, np.uint8)).save(buffer, format="PNG")
+        upload.set_input_files(
+            files=[{"name": "photo.png", "mimeType": "image/png", "buffer": buffer.getvalue()}]
+        )
+        wait_for(lambda: app.state.image_size == (200, 300), what="the uploaded photo")
+        assert app.state.snapshot().occluders == ()
+        assert app.wait_idle(30)
         browser.close()
     image = np.asarray(Image.open(io.BytesIO(shot)).convert("RGB"))
     canvas = image[:, : int(0.68 * image.shape[1])]  # left of the control panel
