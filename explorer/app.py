@@ -108,7 +108,13 @@ class ExplorerApp:
     # ------------------------------------------------------------------ public API
     @property
     def url(self) -> str:
-        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+        """Address to open in a browser on this machine."""
+        host = self.server.get_host()
+        if host in ("0.0.0.0", "::", ""):
+            host = "127.0.0.1"
+        elif ":" in host:
+            host = f"[{host}]"
+        return f"http://{host}:{self.server.get_port()}"
 
     @property
     def view(self) -> PosteriorView | None:
