@@ -254,7 +254,9 @@ class ExplorerApp:
             self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
             self._frame_camera(placement)
         self.scene.show_occluders(self.state.snapshot().occluders)
-        self.scene.show_keypoints(posterior.keypoints.numpy(), posterior.confidences.numpy())
+        self.scene.show_keypoints(
+            posterior.keypoints.cpu().numpy(), posterior.confidences.cpu().numpy()
+        )
         self.panels.show_proxy(result.proxy)
         self._sample_job()
 
@@ -267,7 +269,7 @@ class ExplorerApp:
         started = time.perf_counter()
         view = compute_view(result.posterior, snapshot)
         drawn = time.perf_counter()
-        self.scene.show_view(view, faces=result.posterior.body.faces.numpy())
+        self.scene.show_view(view, faces=result.posterior.body.faces.cpu().numpy())
         done = time.perf_counter()
         self.timings.sample, self.timings.draw = drawn - started, done - drawn
         with self._lock:
@@ -376,8 +378,8 @@ def photo_placement(result: PredictionResult, width: int, height: int) -> PhotoP
     keep odd predictions from making a tiny or huge photo); the hips line up with the body's.
     """
     mode = result.posterior.mode()
-    points3d = mode.keypoints3d[0].double().numpy()
-    points2d = mode.keypoints2d[0].double().numpy()
+    points3d = mode.keypoints3d[0].double().cpu().numpy()
+    points2d = mode.keypoints2d[0].double().cpu().numpy()
     extent2d = np.ptp(points2d[:, 1])
     metres_per_pixel = np.ptp(points3d[:, 1]) / extent2d if extent2d > 1 else 2.0 / height
     height_m = float(np.clip(height * metres_per_pixel, 1.0, 4.0))

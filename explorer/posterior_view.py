@@ -101,8 +101,8 @@ def joint_axes(posterior: BodyPosterior, joint: str, mode_joints: np.ndarray) ->
     return JointAxes(
         joint=joint,
         origin=np.asarray(mode_joints[index + 1], dtype=np.float32),
-        axes=axes.double().numpy().astype(np.float32),
-        concentrations=concentrations.double().numpy(),
+        axes=axes.double().cpu().numpy().astype(np.float32),
+        concentrations=concentrations.double().cpu().numpy(),
     )
 
 
@@ -112,15 +112,15 @@ def compute_view(base: BodyPosterior, snapshot: StateSnapshot) -> PosteriorView:
     mode = posterior.mode()
     samples = posterior.sample(snapshot.num_samples, seed=snapshot.seed)
     shown = min(snapshot.num_displayed, snapshot.num_samples)
-    mode_joints = mode.joints[0].float().numpy()
+    mode_joints = mode.joints[0].float().cpu().numpy()
     return PosteriorView(
         posterior=posterior,
-        mode_vertices=mode.vertices[0].float().numpy(),
+        mode_vertices=mode.vertices[0].float().cpu().numpy(),
         mode_joints=mode_joints,
-        mode_keypoints2d=mode.keypoints2d[0].float().numpy(),
-        sample_vertices=samples.vertices[:shown].float().numpy(),
-        sample_keypoints2d=samples.keypoints2d.float().numpy(),
-        uncertainty=vertex_uncertainty(samples.vertices).float().numpy(),
+        mode_keypoints2d=mode.keypoints2d[0].float().cpu().numpy(),
+        sample_vertices=samples.vertices[:shown].float().cpu().numpy(),
+        sample_keypoints2d=samples.keypoints2d.float().cpu().numpy(),
+        uncertainty=vertex_uncertainty(samples.vertices).float().cpu().numpy(),
         axes=joint_axes(posterior, snapshot.selected_joint, mode_joints),
         sampling_version=snapshot.sampling_version,
     )

@@ -51,8 +51,9 @@ class PredictorProvider:
     """Adapter from :class:`hkpd.prediction.Predictor` to :class:`PosteriorProvider`.
 
     The predictor is loaded on construction (``Predictor.from_pretrained(path, device)``).
-    The proxy is read from the first of the attributes ``posterior_proxy``, ``last_proxy`` or
-    ``proxy`` that the predictor (or the posterior) has after a prediction.
+    The proxy is ``posterior.network_input.proxy`` (what the network saw); failing that, the
+    first of the attributes ``posterior_proxy``, ``last_proxy`` or ``proxy`` that the posterior
+    or the predictor has.
     """
 
     PROXY_ATTRIBUTES = ("posterior_proxy", "last_proxy", "proxy")
@@ -70,8 +71,12 @@ class PredictorProvider:
     def predict(self, image: np.ndarray, occluders: Sequence[Box]) -> PredictionResult:
         boxes = [tuple(map(float, box)) for box in occluders] or None
         posterior = self.predictor.predict(image, occluders=boxes)
-        proxy = None
+        network_input = getattr(posterior, "network_input", None)
+        proxy = getattr(network_input, "proxy", None)
+        proxy = proxy.detach().cpu() if isinstance(proxy, torch.Tensor) else None
         for owner in (posterior, self.predictor):
+            if proxy is not None:
+                break
             for name in self.PROXY_ATTRIBUTES:
                 value = getattr(owner, name, None)
                 if isinstance(value, torch.Tensor):

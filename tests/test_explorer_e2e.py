@@ -1,7 +1,9 @@
 """End-to-end test of the explorer in a real headless Chromium (playwright).
 
 The app runs in-process on the demo photo, driven by the test double of the predictor
-(``test_explorer_double.OcclusionAwareDouble``, see its docstring), so the server state can be
+(``test_explorer_double.OcclusionAwareDouble``, see its docstring) or, when
+``HKPD_EXPLORER_MODEL`` names a trained checkpoint, by the real ``Predictor``; so the server
+state can be
 checked directly. Skipped when playwright (pip) or Debian's chromium (/usr/bin/chromium) is
 missing; never run ``playwright install``.
 
@@ -85,8 +87,9 @@ def photo_to_canvas(app, pixels: np.ndarray) -> np.ndarray:
     return np.stack([u * camera.image_width, v * camera.image_height], axis=1)
 
 
-def arm_uncertainty(app, body) -> float:
-    parts = part_uncertainty(app.view.uncertainty, body.part_labels.numpy())
+def arm_uncertainty(app) -> float:
+    labels = app.result.posterior.body.part_labels.cpu().numpy()
+    parts = part_uncertainty(app.view.uncertainty, labels)
     return parts["left_wrist"] + parts["left_hand"]
 
 
@@ -95,19 +98,22 @@ def app():
     from test_explorer_double import OcclusionAwareDouble
 
     from hkpd.explorer.app import ExplorerApp
+    from hkpd.explorer.demo_scene import render_demo_scene
+    from hkpd.explorer.provider import PredictorProvider
 
-    double = OcclusionAwareDouble()
+    model = os.environ.get("HKPD_EXPLORER_MODEL")
+    provider = PredictorProvider(model, device="cpu") if model else OcclusionAwareDouble()
     # Fewer sample meshes keep software WebGL fast in CI; the docs figure shows the default 10.
     meshes = 10 if os.environ.get("HKPD_UPDATE_FIGURES") == "1" else 4
-    explorer = ExplorerApp(double, double.scene.image, port=0, num_displayed=meshes)
-    explorer.double = double
+    explorer = ExplorerApp(provider, render_demo_scene().image, port=0, num_displayed=meshes)
+    explorer.demo = render_demo_scene()
+    explorer.real_model = bool(model)
     yield explorer
     explorer.stop()
 
 
 def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
     started = time.monotonic()
-    double = app.double
     with playwright_api.sync_playwright() as playwright:
         browser = playwright.chromium.launch(
             executable_path=str(CHROMIUM),
@@ -130,11 +136,12 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         close = page.locator(".mantine-Notification-closeButton")
         for index in range(close.count()):
             close.nth(index).click()
-        before = arm_uncertainty(app, double.body)
+        before = arm_uncertainty(app)
         version = app.state.snapshot().prediction_version
 
         # 1. Shift + drag a box over the left wrist on the photo.
-        wrist = double.scene.keypoints2d[9]
+        wrist = app.demo.keypoints2d[9]
+        first = app.result
         corners = photo_to_canvas(app, np.array([wrist - 28, wrist + 28]))
         page.mouse.move(*corners[0])
         page.keyboard.down("Shift")
@@ -148,10 +155,12 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         assert box[0] <= wrist[0] <= box[2] and box[1] <= wrist[1] <= box[3], box
         np.testing.assert_allclose(box, [*(wrist - 28), *(wrist + 28)], atol=4.0)
         assert app.state.snapshot().prediction_version > version
-        wait_for(lambda: app.result is not None and app.double.calls >= 2, what="prediction")
+        wait_for(lambda: app.result is not first, what="the new prediction")
         assert app.wait_idle(30)
-        occluded = arm_uncertainty(app, double.body)
-        assert occluded > 1.5 * before, (before, occluded)
+        occluded = arm_uncertainty(app)
+        # The test double divides the hidden joints' concentrations by 30; a trained network
+        # only has to become less sure.
+        assert occluded > (1.0 if app.real_model else 1.5) * before, (before, occluded)
 
         # 2. Drag the left elbow's concentration slider towards 0.1x (log10 -0.6).
         page.get_by_text("Left arm", exact=True).click()
@@ -168,7 +177,7 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         )  # index 17 = left_elbow among the 23 body joints
         assert app.wait_idle(30)
         assert app.view.sampling_version == app.state.snapshot().sampling_version
-        loosened = arm_uncertainty(app, double.body)
+        loosened = arm_uncertainty(app)
         assert loosened > occluded, (occluded, loosened)
 
         # 3. Screenshot: the 3D canvas must show something (software WebGL needs a moment).
@@ -189,11 +198,12 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         assert app.state.image_size == (384, 512)
         assert len(app.state.snapshot().occluders) == 1
         buffer = io.BytesIO()
-        Image.fromarray(np.full((300, 200, 3), 90, np.uint8)).save(buffer, format="PNG")
+        # The demo photo at half size: a person the real detector finds too.
+        Image.fromarray(app.demo.image).resize((192, 256)).save(buffer, format="PNG")
         upload.set_input_files(
             files=[{"name": "photo.png", "mimeType": "image/png", "buffer": buffer.getvalue()}]
         )
-        wait_for(lambda: app.state.image_size == (200, 300), what="the uploaded photo")
+        wait_for(lambda: app.state.image_size == (192, 256), what="the uploaded photo")
         assert app.state.snapshot().occluders == ()
         assert app.wait_idle(30)
         browser.close()
