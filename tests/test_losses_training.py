@@ -43,7 +43,8 @@ def batch(body):
     batch = make_training_batch(body, 4, 32, seed=5)
     keypoints, _ = pelvis_relative_body(body, batch.betas, batch.body_pose, batch.global_orient)
     camera = torch.tensor([[0.9, 0.02, -0.05]]).expand(4, 3)
-    batch.keypoints2d = ndc_to_pixels(weak_perspective_project(keypoints, camera))
+    size = batch.proxy.shape[-1]
+    batch.keypoints2d = ndc_to_pixels(weak_perspective_project(keypoints, camera), size)
     batch.camera = camera  # for the tests only
     return batch
 

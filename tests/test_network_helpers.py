@@ -25,8 +25,9 @@ def make_training_batch(
 ) -> TrainingBatch:
     """Bodies with small random poses facing the camera 2.5 m away; random proxies.
 
-    Keypoints are projected with the synthetic perspective camera into 256-pixel crops, as the
-    synthetic data generator does; about 80% of them are marked visible.
+    Keypoints are projected with the synthetic perspective camera (focal length scaled with the
+    crop) into ``image_size``-pixel crops, the proxy's size, as the synthetic data generator
+    does; about 80% of them are marked visible.
     """
     generator = torch.Generator().manual_seed(seed)
     betas = torch.randn(batch_size, 10, generator=generator) * 0.5
@@ -35,7 +36,8 @@ def make_training_batch(
     jitter = torch.randn(batch_size, 3, generator=generator) * torch.tensor([0.05, 0.05, 0.1])
     translation = torch.tensor([0.0, 0.0, 2.5]) + jitter
     posed = body(betas, body_pose, global_orient, translation)
-    keypoints2d = perspective_project(posed.keypoints, SYNTHETIC_FOCAL_PX, CROP_SIZE)
+    focal = SYNTHETIC_FOCAL_PX * image_size / CROP_SIZE
+    keypoints2d = perspective_project(posed.keypoints, focal, image_size)
     visible = torch.rand(batch_size, 17, generator=generator) < 0.8
     proxy = torch.rand(batch_size, 18, image_size, image_size, generator=generator)
     return TrainingBatch(

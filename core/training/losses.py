@@ -20,7 +20,7 @@ from __future__ import annotations
 import torch
 
 from hkpd.body.body_model import BodyModel
-from hkpd.camera_conventions import CROP_SIZE, pixels_to_ndc, weak_perspective_project
+from hkpd.camera_conventions import pixels_to_ndc, weak_perspective_project
 from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
 from hkpd.kinematic_tree import BODY_PARENTS
 from hkpd.network.output import NetworkOutput
@@ -143,7 +143,7 @@ def compute_losses(
     body: BodyModel,
     weights: LossWeights,
     num_samples: int = 8,
-    crop_size: int = CROP_SIZE,
+    crop_size: int | None = None,
     generator: torch.Generator | None = None,
 ) -> dict[str, torch.Tensor]:
     """Every loss term with a non-zero weight, and their weighted sum.
@@ -155,7 +155,8 @@ def compute_losses(
         body: body model on the same device and dtype as the prediction.
         weights: the active :class:`LossWeights` (e.g. ``schedule.weights_at(step)``).
         num_samples: K, bodies sampled per example for the 2D samples loss.
-        crop_size: the pixel size that ``batch.keypoints2d`` refers to.
+        crop_size: the pixel size that ``batch.keypoints2d`` refers to; None (default) reads it
+            from ``batch.proxy``, which is always right for batches from the data generator.
         generator: optional random generator for the samples.
 
     Returns:
@@ -166,6 +167,8 @@ def compute_losses(
     called inside a mixed-precision region.
     """
     with torch.autocast(output.F.device.type, enabled=False):
+        if crop_size is None:
+            crop_size = int(batch.proxy.shape[-1])
         return _compute_losses(output, batch, body, weights, num_samples, crop_size, generator)
 
 
