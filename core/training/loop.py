@@ -34,7 +34,7 @@ from hkpd.training.config import TrainConfig
 from hkpd.training.curves import plot_training_curves
 from hkpd.training.losses import compute_losses
 from hkpd.training.prefetch import Prefetcher
-from hkpd.training.schedule import LossSchedule, LossStage, LossWeights
+from hkpd.training.schedule import LOSS_TERMS, LossSchedule, LossStage, LossWeights
 
 CHECKPOINT_NAME = "last.pt"
 VALIDATION_SEED = 7
@@ -260,15 +260,7 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
     )  # fmt: skip
 
 
-_LOG_TERMS = (
-    "shape_nll",
-    "pose_nll",
-    "global_rotation",
-    "joints2d_mode",
-    "joints2d_samples",
-    "joints3d_mode",
-    "total",
-)
+_LOG_TERMS = (*LOSS_TERMS, "total")
 
 
 def _complete_row(row: dict[str, float]) -> dict[str, float]:
