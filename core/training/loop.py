@@ -101,6 +101,17 @@ def _check_paths(config: TrainConfig) -> None:
         raise FileNotFoundError(f"background folder {config.backgrounds} does not exist")
 
 
+def _tensorboard_writer(out: Path):
+    """A TensorBoard writer logging into ``out/tensorboard``."""
+    try:
+        from torch.utils.tensorboard import SummaryWriter
+    except ImportError as error:
+        raise ValueError(
+            "--tensorboard needs the tensorboard package: pip install tensorboard"
+        ) from error
+    return SummaryWriter(str(out / "tensorboard"))
+
+
 def _append_csv(path: Path, row: dict[str, float]) -> None:
     new = not path.exists()
     with path.open("a", newline="") as handle:
@@ -166,6 +177,7 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         for log in ("train.csv", "val.csv"):
             _truncate_csv(out / log, step)
     schedule = build_schedule(config)
+    board = _tensorboard_writer(out) if config.tensorboard else None
     use_amp = config.amp and device.type == "cuda"
 
     def save() -> Path:
@@ -195,6 +207,9 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         metrics = evaluate_batches(network, validation_set, body)
         network.train()
         _append_csv(out / "val.csv", {"step": step, **metrics})
+        if board is not None:
+            for name, value in metrics.items():
+                board.add_scalar(f"val/{name}", value, step)
         plot_training_curves(out / "train.csv", out / "val.csv", out / "curves.png")
         return metrics
 
@@ -238,6 +253,10 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
                        "samples_per_second": round(rate, 2)}  # fmt: skip
                 row |= {name: float(value.detach()) for name, value in terms.items()}
                 _append_csv(out / "train.csv", _complete_row(row))
+                if board is not None:
+                    for name, value in row.items():
+                        if name != "step":
+                            board.add_scalar(f"train/{name}", value, step)
             if config.val_every and step % config.val_every == 0 and step < config.steps:
                 last_validation = validate()
                 progress.write(f"step {step}: " + _format_metrics(last_validation))
@@ -254,6 +273,8 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         last_validation = validate()
         print(f"final (step {step}): " + _format_metrics(last_validation))
     plot_training_curves(out / "train.csv", out / "val.csv", out / "curves.png")
+    if board is not None:
+        board.close()
     return TrainingResult(
         checkpoint_path, step, samples_seen, time.perf_counter() - started, last_validation,
         interrupted,
