@@ -51,3 +51,23 @@ def test_coco_reader_keeps_mostly_visible_people(tmp_path) -> None:
     assert len(people) == 1
     np.testing.assert_allclose(people[0].bbox, [5, 6, 105, 206])
     assert people[0].visible.all() and people[0].keypoints[3].tolist() == [13, 23]
+
+
+def test_occlusion_response_runs_and_covers_the_limb() -> None:
+    from hkpd.evaluation.occlusion_response import occlusion_response, summarise
+    from hkpd.poses import ProceduralPosePrior
+    from hkpd.synthesis.augmentations import AugmentationConfig
+    from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
+
+    config = SyntheticDataConfig(image_size=64, augmentation=AugmentationConfig.disabled())
+    generator = SyntheticDataGenerator(ProceduralPosePrior(), config)
+    torch.manual_seed(0)
+    network = DistributionNetwork(NetworkConfig(backbone_base_width=8, image_size=64)).eval()
+    cases = occlusion_response(network, generator, cases=4, samples=4, batch_size=4)
+    assert [case.limb for case in cases] == [
+        "left_forearm", "right_forearm", "left_lower_leg", "right_lower_leg",
+    ]  # fmt: skip
+    assert all(np.isfinite(case.ratio) and case.ratio > 0 for case in cases)
+    assert all(len(case.other_changes) == 3 for case in cases)
+    summary = summarise(cases)
+    assert summary["cases"] == 4 and 0 <= summary["fraction_ratio_at_least_1.5"] <= 1

@@ -39,6 +39,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--count", type=int, default=1000, help="synthetic test examples")
     parser.add_argument("--samples", type=int, default=25, help="samples per example")
     parser.add_argument("--coco", type=Path, help="folder with annotations/ and photos (COCO)")
+    parser.add_argument(
+        "--occlusion-cases",
+        type=int,
+        default=0,
+        help="also measure the occlusion response on this many synthetic images (e.g. 100)",
+    )
     parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
     parser.add_argument("--device", default="auto")
     parser.add_argument("--out", type=Path, help="also write the markdown report here")
@@ -129,7 +135,38 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             f"### Real photos: {arguments.coco} ({len(people)} people with >= 12 visible "
             "keypoints; 2D errors on visible keypoints)\n\n" + markdown_table(rows, columns)
         )
+    if arguments.occlusion_cases > 0:
+        rows = {
+            str(checkpoint): occlusion_summary(
+                checkpoint, arguments.poses, arguments.occlusion_cases, device
+            )
+            for checkpoint in arguments.checkpoints
+        }
+        report.append(
+            f"### Occlusion response: {arguments.occlusion_cases} synthetic test images, one "
+            "forearm or lower leg covered by a black box\n\n"
+            + markdown_table(rows, list(next(iter(rows.values()))))
+        )
     return "\n".join(report)
+
+
+def occlusion_summary(checkpoint: Path, poses: Path | None, cases: int, device) -> dict:
+    """:func:`hkpd.evaluation.occlusion_response.summarise` for one checkpoint."""
+    from hkpd.body import BodyModel
+    from hkpd.evaluation.occlusion_response import occlusion_response, summarise
+    from hkpd.synthesis.augmentations import AugmentationConfig
+    from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
+    from hkpd.training.checkpoint import load_network
+    from hkpd.training.loop import pose_source_for
+
+    network, _ = load_network(checkpoint, device)
+    config = SyntheticDataConfig(
+        image_size=int(network.config.image_size), augmentation=AugmentationConfig.disabled()
+    )
+    generator = SyntheticDataGenerator(
+        pose_source_for(poses, "test"), config, device, body=BodyModel().to(device)
+    )
+    return summarise(occlusion_response(network, generator, cases))
 
 
 __all__ = ["label", "main"]

@@ -16,6 +16,13 @@ METRIC_LABELS: dict[str, str] = {
     "joint_error_2d_mode_box_fraction": "2D joint err. mode (box fraction)",
     "joint_error_2d_samples_box_fraction": "2D joint err. samples (box fraction)",
     "people": "people evaluated",
+    "cases": "cases",
+    "occluded_ratio_median": "hidden limb: uncertainty ratio, median",
+    "occluded_ratio_q25": "ratio, 25th pct",
+    "occluded_ratio_q75": "ratio, 75th pct",
+    "fraction_ratio_at_least_1.5": "share with ratio >= 1.5",
+    "other_limbs_change_median": "other limbs: median abs(ratio - 1)",
+    "fraction_other_limbs_within_20pct": "other limbs: share within 20%",
     "failed": "no detection",
 }
 """Readable names of the metrics; min-of-N columns are named in :func:`label`."""

@@ -1,0 +1,161 @@
+"""Does hiding a limb make the model less sure about that limb, and only that limb?
+
+For synthetic test images (held-out poses, no augmentation) one limb's pixels are covered by
+a black box (its bounding box in the rendered part map, plus a margin), exactly as the
+explorer's occluders and ``Predictor.predict(occluders=...)`` do: the box is painted before
+Canny, and keypoints under it are dropped from the heatmaps. The network predicts both
+versions; each limb's mean per-vertex uncertainty (100 samples) is compared:
+
+- *occluded-limb ratio* = uncertainty of the hidden limb with the box / without it;
+- *other limbs' change* = ``|ratio - 1|`` for the three limbs that were not covered.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from hkpd.body import BodyModel
+from hkpd.kinematic_tree import SMPL_JOINT_NAMES
+from hkpd.proxy import build_proxy_batch
+from hkpd.synthesis.generator import SyntheticDataGenerator, batch_seed
+from hkpd.uncertainty import vertex_uncertainty
+
+LIMB_PARTS: dict[str, tuple[str, ...]] = {
+    "left_forearm": ("left_elbow", "left_wrist", "left_hand"),
+    "right_forearm": ("right_elbow", "right_wrist", "right_hand"),
+    "left_lower_leg": ("left_knee", "left_ankle", "left_foot"),
+    "right_lower_leg": ("right_knee", "right_ankle", "right_foot"),
+}
+"""The limbs that get covered, as SMPL part groups (a part is named after the joint it starts
+at: ``left_elbow`` is the left forearm)."""
+
+MIN_LIMB_PIXELS = 40
+BOX_MARGIN_PX_AT_256 = 6
+
+
+@dataclass
+class OcclusionCase:
+    """One image with one limb covered."""
+
+    limb: str
+    ratio: float
+    other_changes: list[float]
+
+
+def _limb_vertex_masks(body: BodyModel) -> dict[str, torch.Tensor]:
+    index = {name: i for i, name in enumerate(SMPL_JOINT_NAMES)}
+    masks = {}
+    for limb, parts in LIMB_PARTS.items():
+        wanted = torch.tensor([index[p] for p in parts], device=body.part_labels.device)
+        masks[limb] = torch.isin(body.part_labels, wanted)
+    return masks
+
+
+def _per_vertex_uncertainty(network, proxy, body, samples: int, seed: int) -> torch.Tensor:
+    """``(B, V)`` uncertainty of each image's predicted posterior, metres."""
+    output = network(proxy)
+    generator = torch.Generator(device=proxy.device).manual_seed(seed)
+    poses = output.pose_distribution().sample(samples, generator=generator)  # (S, B, 23, 3, 3)
+    noise = torch.randn((samples, *output.shape_mean.shape), generator=generator,
+                        device=proxy.device)  # fmt: skip
+    betas = output.shape_mean + output.shape_std * noise
+    result = []
+    for item in range(proxy.shape[0]):
+        orient = output.global_orient[item].expand(samples, 3, 3)
+        vertices = body(betas[:, item], poses[:, item], orient).vertices
+        result.append(vertex_uncertainty(vertices))
+    return torch.stack(result)
+
+
+@torch.no_grad()
+def occlusion_response(
+    network: torch.nn.Module,
+    generator: SyntheticDataGenerator,
+    cases: int = 100,
+    samples: int = 100,
+    seed: int = 77,
+    batch_size: int = 10,
+) -> list[OcclusionCase]:
+    """Cover one limb per image (cycling through the four limbs) and measure the response.
+
+    Args:
+        network: the trained network (eval mode).
+        generator: a synthetic data generator with augmentation switched off, on held-out poses.
+        cases: images with a visible limb to evaluate (images where the chosen limb shows fewer
+            than ``MIN_LIMB_PIXELS`` pixels are skipped and replaced).
+
+    Returns:
+        One :class:`OcclusionCase` per evaluated image.
+    """
+    body = generator.body
+    masks = _limb_vertex_masks(body)
+    limbs = list(LIMB_PARTS)
+    index = {name: i for i, name in enumerate(SMPL_JOINT_NAMES)}
+    results: list[OcclusionCase] = []
+    batch_index = 0
+    while len(results) < cases:
+        rendered = generator.generate(batch_size, batch_seed(seed, batch_index))
+        batch_index += 1
+        size = rendered.images.shape[1]
+        margin = max(1, round(BOX_MARGIN_PX_AT_256 * size / 256))
+        covered_images, covered_present, chosen = [], [], []
+        for item in range(batch_size):
+            limb = limbs[(len(results) + len(chosen)) % len(limbs)]
+            parts = torch.tensor([index[p] for p in LIMB_PARTS[limb]])
+            pixels = torch.isin(rendered.part_map[item].cpu(), parts).nonzero()
+            if len(pixels) < MIN_LIMB_PIXELS:
+                continue
+            (y0, x0), (y1, x1) = pixels.amin(0).tolist(), pixels.amax(0).tolist()
+            x0, y0 = max(0, x0 - margin), max(0, y0 - margin)
+            x1, y1 = min(size, x1 + margin + 1), min(size, y1 + margin + 1)
+            image = rendered.images[item].copy()
+            image[y0:y1, x0:x1] = 0
+            points = rendered.input_keypoints[item].cpu()
+            under = (
+                (points[:, 0] >= x0 - 0.5) & (points[:, 0] < x1 - 0.5)
+                & (points[:, 1] >= y0 - 0.5) & (points[:, 1] < y1 - 0.5)
+            )  # fmt: skip
+            covered_images.append(image)
+            covered_present.append(rendered.input_present[item].cpu() & ~under)
+            chosen.append((item, limb))
+        if not chosen:
+            continue
+        items = [item for item, _ in chosen]
+        device = rendered.batch.proxy.device
+        clean = rendered.batch.proxy[items]
+        covered = build_proxy_batch(
+            np.stack(covered_images),
+            rendered.input_keypoints[items].cpu(),
+            torch.stack(covered_present),
+            device,
+        )
+        before = _per_vertex_uncertainty(network, clean, body, samples, seed)
+        after = _per_vertex_uncertainty(network, covered, body, samples, seed)
+        for row, (_, limb) in enumerate(chosen):
+            ratios = {
+                name: float(after[row, mask].mean() / before[row, mask].mean().clamp_min(1e-9))
+                for name, mask in masks.items()
+            }
+            others = [abs(value - 1) for name, value in ratios.items() if name != limb]
+            results.append(OcclusionCase(limb, ratios[limb], others))
+            if len(results) == cases:
+                break
+    return results
+
+
+def summarise(results: list[OcclusionCase]) -> dict[str, float]:
+    """Median and quartiles of the occluded-limb ratio; median change of the other limbs."""
+    ratios = np.array([case.ratio for case in results])
+    others = np.array([change for case in results for change in case.other_changes])
+    return {
+        "cases": float(len(results)),
+        "occluded_ratio_median": float(np.median(ratios)),
+        "occluded_ratio_q25": float(np.quantile(ratios, 0.25)),
+        "occluded_ratio_q75": float(np.quantile(ratios, 0.75)),
+        "fraction_ratio_at_least_1.5": float((ratios >= 1.5).mean()),
+        "other_limbs_change_median": float(np.median(others)),
+        "fraction_other_limbs_within_20pct": float((others <= 0.2).mean()),
+    }
