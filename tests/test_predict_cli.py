@@ -319,3 +319,11 @@ def test_bbox_reaches_the_detector(photos, tmp_path, checkpoint, scene, monkeypa
     assert summary["person"]["search_bbox"] == [100.0, 120.0, 290.0, 480.0]
     assert not list(tmp_path.glob("person/*.ply"))
     assert "sample_vertices" not in np.load(tmp_path / "person" / "prediction.npz")
+
+
+@pytest.fixture(autouse=True)
+def autograd_stays_on():
+    """hkpd-predict's main() runs without autograd but must hand it back to its caller."""
+    yield
+    assert torch.is_grad_enabled()
+

@@ -367,7 +367,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from tqdm import tqdm
 
-    torch.set_grad_enabled(False)
+    grad_was_enabled = torch.is_grad_enabled()
+    torch.set_grad_enabled(False)  # restored below: main() may be called from Python
     scale = UncertaintyColourScale()
     expected = _expected_errors()
     results: list[PhotoResult] = []
@@ -413,6 +414,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               "folders written so far are complete", file=sys.stderr)  # fmt: skip
         return 130
     finally:
+        torch.set_grad_enabled(grad_was_enabled)
         closer = getattr(predictor, "close", None)
         if closer is not None:
             closer()
