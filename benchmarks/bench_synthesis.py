@@ -40,6 +40,13 @@ def main() -> None:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument(
+        "--workers",
+        type=int,
+        nargs="*",
+        default=[],
+        help="also time the multi-process stream (ParallelBatches) with these worker counts",
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     device = torch.device(args.device)
@@ -58,7 +65,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|")
     for size in args.batch_sizes:
         seeds = iter(range(10_000))
-        whole = timed(lambda s=size: generator.generate(s, batch_seed(1, next(seeds))),
+        whole = timed(lambda s=size, n=seeds: generator.generate(s, batch_seed(1, next(n))),
                       args.repeats, sync)  # fmt: skip
         rendered = generator.generate(size, 123)
         batch = rendered.batch
@@ -73,13 +80,15 @@ def main() -> None:
 
         lighting = sample_lighting(size, torch.Generator().manual_seed(0), device)
         focal = torch.full((size,), 300.0 * args.image_size / 256, device=device)
+        render = generator.renderer.render
         render_times = timed(
-            lambda: generator.renderer.render(vertices, focal, colours, lighting), args.repeats,
+            lambda v=vertices, f=focal, c=colours, li=lighting: render(v, f, c, li),
+            args.repeats,
             sync,
-        )  # fmt: skip
+        )
         images = np.ascontiguousarray(rendered.images)
         proxy_times = timed(
-            lambda: build_proxy_batch(images, batch.keypoints2d, batch.visible, device),
+            lambda i=images, b=batch: build_proxy_batch(i, b.keypoints2d, b.visible, device),
             args.repeats, sync,
         )  # fmt: skip
         median = statistics.median(whole)
@@ -89,6 +98,29 @@ def main() -> None:
             f"{statistics.median(render_times) * 1e3:.0f} | "
             f"{statistics.median(proxy_times) * 1e3:.0f} |"
         )
+    if args.workers:
+        time_parallel(args)
+
+
+def time_parallel(args) -> None:
+    """Samples/s of :class:`ParallelBatches` (one single-threaded generator per process)."""
+    from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
+
+    spec = GeneratorSpec(poses=args.poses, config=SyntheticDataConfig(image_size=args.image_size))
+    print()
+    print("| workers | B | samples/s (stream, after warm-up) |")
+    print("|---|---|---|")
+    for workers in args.workers:
+        for size in args.batch_sizes:
+            with ParallelBatches(spec, size, seed=1, workers=workers) as stream:
+                for _ in range(2 * workers):  # warm-up: start the processes, fill the queues
+                    next(stream)
+                count = max(4, args.repeats) * workers
+                start = time.perf_counter()
+                for _ in range(count):
+                    next(stream)
+                rate = count * size / (time.perf_counter() - start)
+            print(f"| {workers} | {size} | {rate:.0f} |")
 
 
 if __name__ == "__main__":

@@ -106,3 +106,14 @@ def test_preview_grid_picture(generator) -> None:
     picture = preview_grid(rendered, columns=2)
     assert picture.dtype == np.uint8
     assert picture.shape == (3 * (SIZE + 4), 2 * (4 * SIZE + 4), 3)
+
+
+def test_worker_processes_give_the_same_stream(generator) -> None:
+    from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
+
+    spec = GeneratorSpec(config=SyntheticDataConfig(image_size=SIZE))
+    with ParallelBatches(spec, batch_size=2, seed=9, start=1, workers=2) as parallel:
+        from_workers = [next(parallel) for _ in range(3)]
+    in_process = iter(SyntheticBatches(generator, batch_size=2, seed=9, start=1))
+    for batch in from_workers:
+        torch.testing.assert_close(batch.proxy, next(in_process).proxy)

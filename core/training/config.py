@@ -42,6 +42,9 @@ class TrainConfig:
         val_size: validation examples (a fixed synthetic set from the pose bank's val split).
         checkpoint_every: steps between checkpoints (the last one is always written).
         tensorboard: also write TensorBoard logs (needs the tensorboard package).
+        data_workers: CPU only: make batches in this many single-threaded worker processes
+            (:class:`hkpd.synthesis.parallel.ParallelBatches`); 0 makes them in a background
+            thread of the training process.
     """
 
     out: Path = Path("runs/hkpd")
@@ -64,6 +67,7 @@ class TrainConfig:
     val_size: int = 200
     checkpoint_every: int = 1_000
     tensorboard: bool = False
+    data_workers: int = 0
 
     def to_dict(self) -> dict:
         """Plain JSON-able values (paths as strings)."""

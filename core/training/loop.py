@@ -29,6 +29,7 @@ from hkpd.synthesis.generator import (
     SyntheticDataGenerator,
     fixed_test_set,
 )
+from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
 from hkpd.training.checkpoint import read_checkpoint, save_checkpoint
 from hkpd.training.config import TrainConfig
 from hkpd.training.curves import plot_training_curves
@@ -213,7 +214,15 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         plot_training_curves(out / "train.csv", out / "val.csv", out / "curves.png")
         return metrics
 
-    stream = Prefetcher(SyntheticBatches(generator, config.batch_size, config.seed, start=step))
+    if config.data_workers > 0 and device.type == "cpu":
+        spec = GeneratorSpec(config.poses, "train", data_config, config.backgrounds)
+        stream = ParallelBatches(
+            spec, config.batch_size, config.seed, start=step, workers=config.data_workers
+        )
+    else:
+        stream = Prefetcher(
+            SyntheticBatches(generator, config.batch_size, config.seed, start=step)
+        )
     started = time.perf_counter()
     window_start, window_samples = started, 0
     interrupted = False
