@@ -56,6 +56,7 @@ def main() -> None:
         poses, SyntheticDataConfig(image_size=args.image_size), device=device
     )
     generator.generate(4, 0)  # warm up
+    renderer = generator.renderer.render
     print(f"machine: {platform.processor() or platform.machine()}, torch "
           f"{torch.__version__}, threads {torch.get_num_threads()}, device {device}, "
           f"{args.image_size} px, poses {'bank' if args.poses else 'procedural'}")  # fmt: skip
@@ -80,9 +81,8 @@ def main() -> None:
 
         lighting = sample_lighting(size, torch.Generator().manual_seed(0), device)
         focal = torch.full((size,), 300.0 * args.image_size / 256, device=device)
-        render = generator.renderer.render
         render_times = timed(
-            lambda v=vertices, f=focal, c=colours, li=lighting: render(v, f, c, li),
+            lambda v=vertices, f=focal, c=colours, li=lighting: renderer(v, f, c, li),
             args.repeats,
             sync,
         )
