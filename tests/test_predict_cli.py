@@ -326,4 +326,3 @@ def autograd_stays_on():
     """hkpd-predict's main() runs without autograd but must hand it back to its caller."""
     yield
     assert torch.is_grad_enabled()
-

@@ -220,9 +220,7 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
             spec, config.batch_size, config.seed, start=step, workers=config.data_workers
         )
     else:
-        stream = Prefetcher(
-            SyntheticBatches(generator, config.batch_size, config.seed, start=step)
-        )
+        stream = Prefetcher(SyntheticBatches(generator, config.batch_size, config.seed, start=step))
     started = time.perf_counter()
     window_start, window_samples = started, 0
     interrupted = False
