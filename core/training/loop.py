@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import csv
 import math
+import signal
+import threading
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -100,6 +102,19 @@ def pose_source_for(poses: Path | None, split: str) -> PoseSource:
 def _check_paths(config: TrainConfig) -> None:
     if config.backgrounds is not None and not Path(config.backgrounds).is_dir():
         raise FileNotFoundError(f"background folder {config.backgrounds} does not exist")
+
+
+def _stop_on_sigterm() -> None:
+    """Treat SIGTERM (and SIGINT, even where a background launch ignored it) like Ctrl-C: the
+    loop then saves a checkpoint and stops cleanly."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def interrupt(signum, frame) -> None:
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, interrupt)
+    signal.signal(signal.SIGINT, interrupt)
 
 
 def _tensorboard_writer(out: Path):
@@ -221,6 +236,7 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         )
     else:
         stream = Prefetcher(SyntheticBatches(generator, config.batch_size, config.seed, start=step))
+    _stop_on_sigterm()
     started = time.perf_counter()
     window_start, window_samples = started, 0
     interrupted = False
