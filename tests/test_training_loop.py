@@ -84,3 +84,20 @@ def test_schedule_stages_follow_the_config() -> None:
     assert schedule.weights_at(25).joints3d_mode > 0
     never = build_schedule(TrainConfig(samples_loss_from=-1, joints3d_loss_from=-1))
     assert never.weights_at(10**6).joints2d_samples == 0
+
+
+def test_init_weights_start_a_new_run_from_given_weights(run, tmp_path) -> None:
+    config, result = run
+    fresh = TrainConfig(**{**vars(config), "out": tmp_path / "fine", "steps": 5,
+                           "init_weights": result.checkpoint})  # fmt: skip
+    tuned = train(fresh, show_progress=False)
+    assert tuned.steps == 5
+    before, _ = load_network(result.checkpoint)
+    after, _ = load_network(tuned.checkpoint)
+    # five small Adam steps from the given weights stay close to them
+    pairs = zip(before.parameters(), after.parameters(), strict=True)
+    drift = max(float((a - b).abs().max().detach()) for a, b in pairs)
+    assert 0 < float(drift) < 0.05
+    wrong = TrainConfig(**{**vars(fresh), "out": tmp_path / "x", "backbone_base_width": 8})
+    with pytest.raises(ValueError, match="architecture"):
+        train(wrong, show_progress=False)

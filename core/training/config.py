@@ -42,6 +42,9 @@ class TrainConfig:
         val_size: validation examples (a fixed synthetic set from the pose bank's val split).
         checkpoint_every: steps between checkpoints (the last one is always written).
         tensorboard: also write TensorBoard logs (needs the tensorboard package).
+        init_weights: start from these network weights (e.g. the shipped fp16 model) instead of
+            a fresh initialisation; the architecture must match. Unlike ``--resume`` this starts a
+            new run (step 0, new optimiser).
         data_workers: CPU only: make batches in this many single-threaded worker processes
             (:class:`hkpd.synthesis.parallel.ParallelBatches`); 0 makes them in a background
             thread of the training process.
@@ -68,6 +71,7 @@ class TrainConfig:
     checkpoint_every: int = 1_000
     tensorboard: bool = False
     data_workers: int = 0
+    init_weights: Path | None = None
 
     def to_dict(self) -> dict:
         """Plain JSON-able values (paths as strings)."""

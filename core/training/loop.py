@@ -32,7 +32,7 @@ from hkpd.synthesis.generator import (
     fixed_test_set,
 )
 from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
-from hkpd.training.checkpoint import read_checkpoint, save_checkpoint
+from hkpd.training.checkpoint import load_network, read_checkpoint, save_checkpoint
 from hkpd.training.config import TrainConfig
 from hkpd.training.curves import plot_training_curves
 from hkpd.training.losses import compute_losses
@@ -183,6 +183,15 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         image_size=config.image_size,
     )
     network = DistributionNetwork(network_config).to(device)
+    if config.init_weights is not None and not resume:
+        initial, payload = load_network(config.init_weights, device)
+        if payload["network_config"] != network_config.to_dict():
+            raise ValueError(
+                f"--init-weights {config.init_weights} has architecture "
+                f"{payload['network_config']}, but this run builds {network_config.to_dict()}: "
+                "match --image-size, --backbone-base-width and --pose-head"
+            )
+        network.load_state_dict(initial.state_dict())
     optimizer = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
     step, samples_seen = 0, 0
     if resume:
