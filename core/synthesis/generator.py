@@ -203,7 +203,8 @@ class SyntheticDataGenerator:
         input_present = swapped_points[..., 2] > 0.5
         input_keypoints = jitter_joints(swapped_points[..., :2], size, augment, generator)
 
-        images = (image.clamp(0, 1) * 255 + 0.5).to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()
+        pixels = (image.clamp(0, 1) * 255 + 0.5).to(torch.uint8)
+        images = pixels.permute(0, 2, 3, 1).contiguous().cpu().numpy()  # contiguous rows for cv2
         proxy = build_proxy_batch(images, input_keypoints, input_present, device)
         batch = TrainingBatch(
             proxy=proxy,
