@@ -16,13 +16,11 @@ from __future__ import annotations
 
 import argparse
 import platform
-import statistics
-import time
-from collections.abc import Callable
 
 import numpy as np
 import roma
 import torch
+from timing import median_and_best
 
 from hkpd.body import BodyAsset, BodyModel
 from hkpd.body.body_model import load_shipped_asset
@@ -139,22 +137,6 @@ def synthetic_asset(seed: int = 0) -> BodyAsset:
     )
 
 
-def timings(action: Callable[[], object], repeats: int) -> tuple[float, float]:
-    """(median, best) wall time in seconds of ``action`` over ``repeats`` runs after warm-up.
-
-    This VM shares its host, so timings drift between runs; the best run shows what the code
-    achieves undisturbed, the median what a user typically sees.
-    """
-    action()
-    action()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        action()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), min(times)
-
-
 def milliseconds(pair: tuple[float, float]) -> str:
     return f"{pair[0] * 1e3:.2f} ({pair[1] * 1e3:.2f})"
 
@@ -182,16 +164,19 @@ def body_model_table(body: BodyModel, repeats: int) -> list[str]:
         global_orient = roma.rotvec_to_rotmat(torch.randn(batch, 3, generator=generator))
         transl = torch.randn(batch, 3, generator=generator)
         with torch.no_grad():
-            forward = timings(
-                lambda b=betas, p=body_pose, g=global_orient, t=transl: body(b, p, g, t), repeats
+            forward = median_and_best(
+                lambda b=betas, p=body_pose, g=global_orient, t=transl: body(b, p, g, t),
+                repeats,
+                warmups=2,
             )
-            dense = timings(
+            dense = median_and_best(
                 lambda b=betas, p=body_pose, g=global_orient, t=transl: dense_forward(
                     body, b, p, g, t
                 ),
                 max(5, repeats // 5),
+                warmups=2,
             )
-            tpose = timings(lambda b=betas: body.tpose(b), repeats)
+            tpose = median_and_best(lambda b=betas: body.tpose(b), repeats, warmups=2)
 
         def forward_backward(b=betas, p=body_pose, g=global_orient, t=transl) -> None:
             shape = b.clone().requires_grad_(True)
@@ -199,7 +184,7 @@ def body_model_table(body: BodyModel, repeats: int) -> list[str]:
             output = body(shape, pose, g, t)
             (output.vertices.sum() + output.keypoints.sum()).backward()
 
-        backward = timings(forward_backward, max(5, repeats // 5))
+        backward = median_and_best(forward_backward, max(5, repeats // 5), warmups=2)
         rows.append(
             f"| {batch} | {milliseconds(forward)} | {forward[0] / batch * 1e3:.3f} ms "
             f"| {milliseconds(dense)} | {milliseconds(backward)} | {milliseconds(tpose)} |"

@@ -20,10 +20,7 @@ import argparse
 import datetime
 import os
 import platform
-import statistics
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import roma
@@ -46,23 +43,7 @@ from hkpd.training.schedule import LossWeights
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_network_helpers import make_training_batch
-
-
-def timed(function: Callable[[], object], repeats: int) -> tuple[float, float, float]:
-    """Median and best wall time, and median process CPU time, in seconds, of ``function()``
-    after one warm-up call.
-
-    The CPU time (all threads) is robust to other processes competing for the cores; divided
-    by the thread count it estimates the wall time on an otherwise idle machine.
-    """
-    function()
-    walls, cpus = [], []
-    for _ in range(repeats):
-        start, start_cpu = time.perf_counter(), time.process_time()
-        function()
-        walls.append(time.perf_counter() - start)
-        cpus.append(time.process_time() - start_cpu)
-    return statistics.median(walls), min(walls), statistics.median(cpus)
+from timing import median_best_and_cpu
 
 
 def model_table(widths, batches, repeats, samples, body) -> list[str]:
@@ -91,8 +72,8 @@ def model_table(widths, batches, repeats, samples, body) -> list[str]:
                     network.zero_grad(set_to_none=True)
                     terms["total"].backward()
 
-                inference = timed(infer, repeats)
-                training = timed(train, repeats)
+                inference = median_best_and_cpu(infer, repeats)
+                training = median_best_and_cpu(train, repeats)
                 per = 1e3 / batch_size
                 name = "ResNet-18" if width == 64 else f"ResNet-18 × {width / 64:g}"
                 rows.append(
@@ -141,7 +122,7 @@ def breakdown_table(width, batch_size, repeats, samples, body) -> list[str]:
         "|---|---|---|",
     ]
     for name, function in parts:
-        median, best, cpu = timed(function, repeats)
+        median, best, cpu = median_best_and_cpu(function, repeats)
         rows.append(f"| {name} | {median * 1e3:.0f} ({best * 1e3:.0f}) | {cpu * 1e3:.0f} |")
         print(rows[-1], file=sys.stderr, flush=True)
     return rows
@@ -191,7 +172,7 @@ def head_table(batch_size, repeats) -> list[str]:
         ("per depth level (implementation)", batched),
         ("per joint loop", looped),
     ):
-        median, best, cpu = timed(function, repeats)
+        median, best, cpu = median_best_and_cpu(function, repeats)
         rows.append(f"| {name} | {median * 1e3:.1f} ({best * 1e3:.1f}) | {cpu * 1e3:.1f} |")
         print(rows[-1], file=sys.stderr, flush=True)
     return rows
@@ -239,8 +220,8 @@ def body_table(counts, repeats, body) -> list[str]:
                 .max()
                 .item()
             )
-        full_time = timed(full, repeats)
-        light_time = timed(light, repeats)
+        full_time = median_best_and_cpu(full, repeats)
+        light_time = median_best_and_cpu(light, repeats)
         rows.append(
             f"| {count} | {full_time[0] * 1e3:.1f} ({full_time[1] * 1e3:.1f}), "
             f"{full_time[2] * 1e3:.1f} | {light_time[0] * 1e3:.1f} ({light_time[1] * 1e3:.1f}), "

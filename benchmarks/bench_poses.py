@@ -11,24 +11,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import torch
+from timing import median_and_best
 
 from hkpd.poses import PoseBank, ProceduralPosePrior, load_bvh, retarget
-
-
-def measure(function: Callable[[], object], repeats: int) -> tuple[float, float]:
-    function()  # warm-up (caches, lazy imports)
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), min(times)
 
 
 def main() -> None:
@@ -52,19 +40,23 @@ def run(args: argparse.Namespace) -> None:
     if Path(args.bvh).is_file():
         motion = load_bvh(args.bvh)
         frames = f"{motion.num_frames} frames"
-        rows.append(("parse BVH", frames, *measure(lambda: load_bvh(args.bvh), args.repeats)))
-        rows.append(("retarget clip", frames, *measure(lambda: retarget(motion), args.repeats)))
+        rows.append(
+            ("parse BVH", frames, *median_and_best(lambda: load_bvh(args.bvh), args.repeats))
+        )
+        rows.append(
+            ("retarget clip", frames, *median_and_best(lambda: retarget(motion), args.repeats))
+        )
     sources: list[tuple[str, object]] = [("ProceduralPosePrior.sample", ProceduralPosePrior())]
     if Path(args.bank).is_file():
-        rows.append(("PoseBank.load train", args.bank, *measure(
+        rows.append(("PoseBank.load train", args.bank, *median_and_best(
             lambda: PoseBank.load(args.bank), args.repeats)))  # fmt: skip
         sources.append(("PoseBank.sample", PoseBank.load(args.bank)))
     for name, source in sources:
         for count in (64, 1024):
             generator = torch.Generator().manual_seed(0)
             rows.append(
-                (name, f"count={count}",
-                 *measure(lambda s=source, c=count, g=generator: s.sample(c, g), args.repeats))
+                (name, f"count={count}", *median_and_best(
+                    lambda s=source, c=count, g=generator: s.sample(c, g), args.repeats))
             )  # fmt: skip
     print(f"threads={torch.get_num_threads()} load={os.getloadavg()[0]:.1f}")
     print(f"{'operation':<28} {'input':<36} {'median ms':>10} {'best ms':>9}")

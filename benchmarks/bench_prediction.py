@@ -25,6 +25,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from timing import call_times
 
 from hkpd.prediction import (
     CropTransform,
@@ -39,12 +40,7 @@ DEFAULT_PHOTOS = Path("/work/shared/data/demo_photos")
 
 def timings(function: Callable[[], object], repeats: int) -> list[float]:
     """Wall-clock seconds of ``repeats`` calls."""
-    result = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        result.append(time.perf_counter() - start)
-    return result
+    return call_times(function, repeats, warmups=0)[0]
 
 
 def ms(values: list[float]) -> str:

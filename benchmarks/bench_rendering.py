@@ -27,13 +27,11 @@ import argparse
 import datetime
 import os
 import platform
-import statistics
-import time
-from collections.abc import Callable
 
 import cv2
 import numpy as np
 import torch
+from timing import median_best_and_cpu
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import CROP_SIZE, FRONTAL_GLOBAL_ORIENT, perspective_project
@@ -58,22 +56,6 @@ SPLAT_WEIGHTS = torch.tensor(
     ]
 )
 """Barycentric sample points of candidate A: corners, centroid, edge midpoints."""
-
-
-def timed(function: Callable[[], object], repeats: int) -> tuple[float, float, float]:
-    """Median and best wall time and median process CPU time in seconds (after a warm-up).
-
-    On a shared host the CPU time of a one-thread run is the steadiest measure of the work.
-    """
-    function()
-    times = []
-    cpu_times = []
-    for _ in range(repeats):
-        start, start_cpu = time.perf_counter(), time.process_time()
-        function()
-        times.append(time.perf_counter() - start)
-        cpu_times.append(time.process_time() - start_cpu)
-    return statistics.median(times), min(times), statistics.median(cpu_times)
 
 
 def random_scene(count: int, seed: int = 0):
@@ -175,7 +157,7 @@ def render_table(args, body, vertices, focal, albedo, lighting) -> None:
     for smooth in (True, False):
         renderer = MeshRenderer(body.faces, CROP_SIZE, smooth_normals=smooth)
         for batch in (1, 16, 64):
-            median, best, cpu = timed(
+            median, best, cpu = median_best_and_cpu(
                 lambda r=renderer, b=batch: r.render(
                     vertices[:b], focal[:b], albedo[:b], _first(lighting, b)
                 ),
@@ -192,13 +174,13 @@ def candidate_table(args, body, vertices, focal, albedo, lighting) -> None:
     batch = vertices.shape[0]
     renderer = MeshRenderer(body.faces, CROP_SIZE)
     exact = renderer.render(vertices, focal, albedo, lighting)
-    exact_time = timed(
+    exact_time = median_best_and_cpu(
         lambda: renderer.rasterizer(
             vertices, focal, torch.empty_like(exact.face_index), torch.empty_like(exact.depth)
         ),
         args.repeats,
     )
-    splat_time = timed(
+    splat_time = median_best_and_cpu(
         lambda: splat_candidate(vertices, body.faces, focal, CROP_SIZE), args.repeats
     )
     splatted = splat_candidate(vertices, body.faces, focal, CROP_SIZE)
@@ -257,7 +239,7 @@ def sampler_table(args, body, sampler, generator, batch: int = 64) -> None:
     print("| step | ms/image (median) | ms/image (best) | CPU ms/image (median) |")
     print("|---|---:|---:|---:|")
     for name, function in rows:
-        median, best, cpu = timed(function, args.repeats)
+        median, best, cpu = median_best_and_cpu(function, args.repeats)
         print(
             f"| {name} | {median / batch * 1e3:.3f} | {best / batch * 1e3:.3f} "
             f"| {cpu / batch * 1e3:.3f} |"

@@ -15,30 +15,12 @@ from __future__ import annotations
 
 import argparse
 import platform
-import statistics
-import time
-from collections.abc import Callable
 
 import torch
+from timing import median_and_best
 
 from hkpd.distributions import KinematicMatrixFisher, MatrixFisher
 from hkpd.kinematic_tree import BODY_PARENTS
-
-
-def timings(action: Callable[[], object], repeats: int) -> tuple[float, float]:
-    """(median, best) wall time in seconds of ``action`` over ``repeats`` runs after warm-up.
-
-    This VM shares its host, so timings drift between runs; the best run shows what the code
-    achieves undisturbed, the median what a user typically sees.
-    """
-    action()
-    action()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        action()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), min(times)
 
 
 def sampler_table(batch: int, samples: int, repeats: int) -> list[str]:
@@ -52,9 +34,9 @@ def sampler_table(batch: int, samples: int, repeats: int) -> list[str]:
     for scale in (0.0, 1.0, 10.0, 100.0, 1000.0):
         F = scale * torch.randn(batch, len(BODY_PARENTS), 3, 3, generator=generator)
         built = KinematicMatrixFisher(F, BODY_PARENTS)
-        steady = timings(lambda built=built: built.sample(samples), repeats)
-        end_to_end = timings(
-            lambda F=F: KinematicMatrixFisher(F, BODY_PARENTS).sample(samples), repeats
+        steady = median_and_best(lambda built=built: built.sample(samples), repeats, warmups=2)
+        end_to_end = median_and_best(
+            lambda F=F: KinematicMatrixFisher(F, BODY_PARENTS).sample(samples), repeats, warmups=2
         )
         acceptance = float(built.last_acceptance_rate.mean())
         expected = float(built.joints.expected_acceptance_rate.min())
@@ -67,7 +49,9 @@ def sampler_table(batch: int, samples: int, repeats: int) -> list[str]:
         )
     # For comparison: the same work as one small sampling call per distribution.
     F = 10.0 * torch.randn(batch * len(BODY_PARENTS), 3, 3, generator=generator)
-    loop = timings(lambda: [MatrixFisher(f).sample((samples,)) for f in F], max(3, repeats // 20))
+    loop = median_and_best(
+        lambda: [MatrixFisher(f).sample((samples,)) for f in F], max(3, repeats // 20), warmups=2
+    )
     rows.append(
         f"| 10, naive loop: one call per distribution | - | {per_call / loop[0] / 1e6:.2f} M "
         f"({per_call / loop[1] / 1e6:.2f} M) | - | - |"
@@ -83,7 +67,9 @@ def normalizer_table(batch: int, repeats: int) -> list[str]:
     generator = torch.Generator().manual_seed(1)
     for dtype in (torch.float32, torch.float64):
         F = 50.0 * torch.randn(batch, len(BODY_PARENTS), 3, 3, generator=generator, dtype=dtype)
-        seconds, best = timings(lambda F=F: MatrixFisher(F).log_normalizer, repeats)
+        seconds, best = median_and_best(
+            lambda F=F: MatrixFisher(F).log_normalizer, repeats, warmups=2
+        )
         count = batch * len(BODY_PARENTS)
         rows.append(
             f"| F {str(dtype).replace('torch.', '')}, with SVD | {count / seconds / 1e3:.0f} k "

@@ -15,21 +15,16 @@ import time
 
 import numpy as np
 import torch
+from timing import call_times
 
-from hkpd.poses import PoseBank, ProceduralPosePrior
+from hkpd.poses import pose_source
 from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator, batch_seed
 
 
 def timed(function, repeats: int, synchronise) -> list[float]:
-    times = []
-    for _ in range(repeats):
-        synchronise()
-        start = time.perf_counter()
-        function()
-        synchronise()
-        times.append(time.perf_counter() - start)
-    return times
+    """Wall seconds of ``repeats`` calls (warm-ups are done by the caller)."""
+    return call_times(function, repeats, warmups=0, synchronise=synchronise)[0]
 
 
 def main() -> None:
@@ -51,7 +46,7 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     device = torch.device(args.device)
     sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
-    poses = PoseBank.load(args.poses, "train") if args.poses else ProceduralPosePrior()
+    poses = pose_source(args.poses, "train")
     generator = SyntheticDataGenerator(
         poses, SyntheticDataConfig(image_size=args.image_size), device=device
     )

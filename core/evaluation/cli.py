@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import torch
 
-from hkpd.evaluation.report import label, markdown_table
+from hkpd.evaluation.report import markdown_table
 
 SYNTHETIC_COLUMNS = [
     "mpjpe_sc",
@@ -51,26 +52,33 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def evaluate_synthetic(checkpoint: Path, poses: Path | None, count: int, samples: int, device):
-    """Metrics of one checkpoint on the fixed synthetic test set (3D in mm, 2D in px at 256)."""
+def _network_and_test_generator(
+    checkpoint: Path, poses: Path | None, device, augmentation=None
+) -> tuple:
+    """The checkpoint's network and a generator of test-split examples at its input size."""
     from hkpd.body import BodyModel
-    from hkpd.evaluation.synthetic import evaluate_batches
-    from hkpd.synthesis.generator import (
-        SyntheticDataConfig,
-        SyntheticDataGenerator,
-        iter_fixed_test_set,
-    )
+    from hkpd.poses import pose_source
+    from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
     from hkpd.training.checkpoint import load_network
-    from hkpd.training.loop import pose_source_for
 
     network, _ = load_network(checkpoint, device)
-    size = int(network.config.image_size)
+    config = SyntheticDataConfig(image_size=int(network.config.image_size))
+    if augmentation is not None:
+        config = replace(config, augmentation=augmentation)
     body = BodyModel().to(device)
-    generator = SyntheticDataGenerator(
-        pose_source_for(poses, "test"), SyntheticDataConfig(image_size=size), device, body=body
-    )
+    generator = SyntheticDataGenerator(pose_source(poses, "test"), config, device, body=body)
+    return network, generator
+
+
+def evaluate_synthetic(checkpoint: Path, poses: Path | None, count: int, samples: int, device):
+    """Metrics of one checkpoint on the fixed synthetic test set (3D in mm, 2D in px at 256)."""
+    from hkpd.evaluation.synthetic import evaluate_batches
+    from hkpd.synthesis.generator import iter_fixed_test_set
+
+    network, generator = _network_and_test_generator(checkpoint, poses, device)
     batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
-    return evaluate_batches(network, batches, body, samples) | {"image_size": size}
+    size = generator.config.image_size
+    return evaluate_batches(network, batches, generator.body, samples) | {"image_size": size}
 
 
 def _metric_order(name: str) -> tuple[str, int]:
@@ -80,7 +88,7 @@ def _metric_order(name: str) -> tuple[str, int]:
 
 def main(argv: list[str] | None = None) -> int:
     arguments = build_parser().parse_args(argv)
-    from hkpd.training.loop import resolve_device
+    from hkpd.devices import resolve_device
 
     try:
         device = resolve_device(arguments.device)
@@ -152,24 +160,14 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
 
 def occlusion_summary(checkpoint: Path, poses: Path | None, cases: int, device) -> dict:
     """:func:`hkpd.evaluation.occlusion_response.summarise` for one checkpoint."""
-    from hkpd.body import BodyModel
     from hkpd.evaluation.occlusion_response import occlusion_response, summarise
     from hkpd.synthesis.augmentations import AugmentationConfig
-    from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
-    from hkpd.training.checkpoint import load_network
-    from hkpd.training.loop import pose_source_for
 
-    network, _ = load_network(checkpoint, device)
-    config = SyntheticDataConfig(
-        image_size=int(network.config.image_size), augmentation=AugmentationConfig.disabled()
-    )
-    generator = SyntheticDataGenerator(
-        pose_source_for(poses, "test"), config, device, body=BodyModel().to(device)
+    network, generator = _network_and_test_generator(
+        checkpoint, poses, device, AugmentationConfig.disabled()
     )
     return summarise(occlusion_response(network, generator, cases))
 
-
-__all__ = ["label", "main"]
 
 if __name__ == "__main__":
     raise SystemExit(main())

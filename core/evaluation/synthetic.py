@@ -50,7 +50,6 @@ def evaluate_batches(
         if generator is None:
             generator = torch.Generator(device=device).manual_seed(seed)
         output = network(batch.proxy)
-        output = type(output)(**{k: v.float() for k, v in vars(output).items()})
         targets = EvaluationTargets(
             joints3d=batch.joints3d,
             betas=batch.betas,

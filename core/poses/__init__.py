@@ -8,6 +8,7 @@ from hkpd.poses.bvh import BvhMotion, BvhParseError, BvhSkeleton, load_bvh, pars
 from hkpd.poses.mirror import mirror_pose
 from hkpd.poses.procedural import JOINT_LIMITS, JointLimit, ProceduralPosePrior
 from hkpd.poses.retargeting import RetargetedMotion, retarget
+from hkpd.poses.selection import pose_source
 from hkpd.poses.skeleton_flavours import FLAVOURS, SkeletonFlavour, detect_flavour
 from hkpd.poses.source import PoseSource
 from hkpd.poses.subject_split import assign_splits, subject_of
@@ -31,6 +32,7 @@ __all__ = [
     "load_bvh",
     "mirror_pose",
     "parse_bvh",
+    "pose_source",
     "retarget",
     "subject_of",
 ]

@@ -149,7 +149,8 @@ class PoseBank:
         if not path.is_file():
             raise FileNotFoundError(
                 f"pose bank {path} does not exist; build one with "
-                "'hkpd-poses build BVH_DIR --out poses.npz' or use ProceduralPosePrior()"
+                "'hkpd-poses build BVH_DIR --out poses.npz' or use ProceduralPosePrior() (on the "
+                "command line: leave --poses out)"
             )
         try:
             with np.load(path, allow_pickle=False) as data:

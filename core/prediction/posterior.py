@@ -16,14 +16,20 @@ from typing import Any, Protocol
 import torch
 
 from hkpd.body import BodyModel
-from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
+from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
 from hkpd.uncertainty import vertex_uncertainty
 
 
 class CropToImage(Protocol):
-    """Anything that maps crop pixels back to original-image pixels."""
+    """Anything that maps crop pixels back to original-image pixels (e.g. a ``CropTransform``).
+
+    Attributes:
+        size: side of the crop in pixels (the network's input size).
+    """
+
+    size: int
 
     def crop_to_image(self, points: torch.Tensor) -> torch.Tensor: ...
 
@@ -114,9 +120,7 @@ class BodyPosterior:
         root = posed.joints[:, :1]
         keypoints3d = posed.keypoints - root
         ndc = weak_perspective_project(keypoints3d, self.camera.expand(count, 3))
-        keypoints2d = self.crop.crop_to_image(
-            ndc_to_pixels(ndc, getattr(self.crop, "size", CROP_SIZE))
-        )
+        keypoints2d = self.crop.crop_to_image(ndc_to_pixels(ndc, self.crop.size))
         return BodyMeshes(
             vertices=posed.vertices - root,
             joints=posed.joints - root,

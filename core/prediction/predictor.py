@@ -19,12 +19,12 @@ import torch
 from PIL import Image
 
 from hkpd.body import BodyModel
+from hkpd.devices import resolve_device
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
 from hkpd.prediction.network_input import prepare_network_input
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.training.checkpoint import load_network
-from hkpd.training.loop import resolve_device
 
 SHIPPED_MODEL = ("models", "hkpd_hierarchical.pt")
 """The pretrained weights inside the ``hkpd.assets`` package."""

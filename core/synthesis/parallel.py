@@ -38,9 +38,9 @@ class GeneratorSpec:
     backgrounds: Path | None = None
 
     def build(self, device: str = "cpu") -> SyntheticDataGenerator:
-        from hkpd.poses import PoseBank, ProceduralPosePrior
+        from hkpd.poses import pose_source
 
-        source = PoseBank.load(self.poses, self.split) if self.poses else ProceduralPosePrior()
+        source = pose_source(self.poses, self.split)
         return SyntheticDataGenerator(source, self.config, device, self.backgrounds)
 
 

@@ -107,10 +107,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--device", default="cpu")
     args = parser.parse_args(argv)
 
-    from hkpd.poses import PoseBank, ProceduralPosePrior
+    from hkpd.poses import pose_source
 
     try:
-        poses = PoseBank.load(args.poses, split=args.split) if args.poses else ProceduralPosePrior()
+        poses = pose_source(args.poses, args.split)
         generator = SyntheticDataGenerator(
             poses,
             SyntheticDataConfig(image_size=args.image_size),

@@ -22,9 +22,10 @@ import torch
 from tqdm import tqdm
 
 from hkpd.body import BodyModel
+from hkpd.devices import resolve_device
 from hkpd.network import DistributionNetwork
 from hkpd.network.config import NetworkConfig
-from hkpd.poses import PoseBank, PoseSource, ProceduralPosePrior
+from hkpd.poses import pose_source
 from hkpd.synthesis.generator import (
     SyntheticBatches,
     SyntheticDataConfig,
@@ -55,16 +56,6 @@ class TrainingResult:
     interrupted: bool = False
 
 
-def resolve_device(name: str) -> torch.device:
-    """``auto`` -> CUDA when available, else CPU; ``cuda`` without a GPU is an error."""
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    device = torch.device(name)
-    if device.type == "cuda" and not torch.cuda.is_available():
-        raise ValueError("--device cuda was asked for, but torch sees no CUDA GPU; use auto/cpu")
-    return device
-
-
 def build_schedule(config: TrainConfig, weights: LossWeights | None = None) -> LossSchedule:
     """The paper's staged losses with the config's boundaries (-1 switches a stage off)."""
     full = weights or LossWeights()
@@ -85,18 +76,6 @@ def build_schedule(config: TrainConfig, weights: LossWeights | None = None) -> L
         else:
             stages.append(LossStage(start, current, label))
     return LossSchedule(tuple(stages))
-
-
-def pose_source_for(poses: Path | None, split: str) -> PoseSource:
-    """A pose bank split, or the procedural prior when no bank is given."""
-    if poses is None:
-        return ProceduralPosePrior()
-    if not Path(poses).is_file():
-        raise FileNotFoundError(
-            f"pose bank {poses} does not exist; build one with `hkpd-poses build BVH_DIR --out "
-            f"{poses}` or leave --poses out to train on the procedural pose prior"
-        )
-    return PoseBank.load(poses, split=split)
 
 
 def _check_paths(config: TrainConfig) -> None:
@@ -166,8 +145,8 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
     checkpoint_path = out / CHECKPOINT_NAME
     if resume and not checkpoint_path.is_file():
         raise FileNotFoundError(f"--resume: no checkpoint at {checkpoint_path}")
-    train_poses = pose_source_for(config.poses, "train")
-    val_poses = pose_source_for(config.poses, "val")
+    train_poses = pose_source(config.poses, "train")
+    val_poses = pose_source(config.poses, "val")
     out.mkdir(parents=True, exist_ok=True)
     config.save(out / "config.json")
 
@@ -259,7 +238,6 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
             weights = schedule.weights_at(step)
             with torch.autocast(device.type, dtype=torch.bfloat16, enabled=use_amp):
                 output = network(batch.proxy)
-            output = type(output)(**{k: v.float() for k, v in vars(output).items()})
             terms = compute_losses(output, batch, body, weights, config.num_samples)
             optimizer.zero_grad(set_to_none=True)
             terms["total"].backward()
