@@ -23,30 +23,13 @@ from typing import Any
 
 import numpy as np
 
+from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.kinematic_tree import SMPL_JOINT_NAMES, validate_parents
 
 NUM_JOINTS = 24
 """Joints of the kinematic tree (SMPL's 24)."""
 
-COCO_KEYPOINT_NAMES: tuple[str, ...] = (
-    "nose",
-    "left_eye",
-    "right_eye",
-    "left_ear",
-    "right_ear",
-    "left_shoulder",
-    "right_shoulder",
-    "left_elbow",
-    "right_elbow",
-    "left_wrist",
-    "right_wrist",
-    "left_hip",
-    "right_hip",
-    "left_knee",
-    "right_knee",
-    "left_ankle",
-    "right_ankle",
-)
+COCO_KEYPOINT_NAMES: tuple[str, ...] = COCO17_NAMES
 """The 17 COCO keypoints, in the order of the ``keypoint_regressor`` rows."""
 
 WEIGHT_SUM_TOLERANCE = 1e-3

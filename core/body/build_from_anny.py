@@ -49,16 +49,12 @@ from hkpd.body.anny_rig_mapping import (
     location_bones,
 )
 from hkpd.body.asset import BodyAsset, save_body_asset
+from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.distributions import compose_global_rotations
 from hkpd.kinematic_tree import SMPL_JOINT_NAMES, SMPL_PARENTS
 
 ANNY_VERSION = "0.6.2"
 NUM_BETAS = 10
-COCO17_LABELS = (
-    "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder",
-    "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip",
-    "right_hip", "left_knee", "right_knee", "left_ankle", "right_ankle",
-)  # fmt: skip
 ANNY_TO_SMPL_AXES = torch.tensor(
     [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]], dtype=torch.float64
 )
@@ -405,7 +401,7 @@ def coco_regressor(rig: AnnyRig, keep: torch.Tensor) -> tuple[torch.Tensor, floa
     """
     import anny
 
-    regressor = anny.KeypointsRegressor.coco(rig.model, labels=list(COCO17_LABELS))
+    regressor = anny.KeypointsRegressor.coco(rig.model, labels=list(COCO17_NAMES))
     weights = regressor.regression_weights.double()
     dropped_mass = float(weights[:, ~keep].sum(1).max())
     kept = weights[:, keep]

@@ -19,6 +19,7 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.kinematic_tree import SMPL_JOINT_NAMES
+from hkpd.prediction.occluders import apply_occluders, points_under_boxes
 from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.generator import SyntheticDataGenerator, batch_seed
 from hkpd.uncertainty import vertex_uncertainty
@@ -45,13 +46,19 @@ class OcclusionCase:
     other_changes: list[float]
 
 
+LIMB_PART_INDICES: dict[str, torch.Tensor] = {
+    limb: torch.tensor([SMPL_JOINT_NAMES.index(part) for part in parts])
+    for limb, parts in LIMB_PARTS.items()
+}
+"""The parts of each limb as SMPL joint-group indices."""
+
+
 def _limb_vertex_masks(body: BodyModel) -> dict[str, torch.Tensor]:
-    index = {name: i for i, name in enumerate(SMPL_JOINT_NAMES)}
-    masks = {}
-    for limb, parts in LIMB_PARTS.items():
-        wanted = torch.tensor([index[p] for p in parts], device=body.part_labels.device)
-        masks[limb] = torch.isin(body.part_labels, wanted)
-    return masks
+    """``{limb: (V,) bool}``, the body's vertices labelled with one of the limb's parts."""
+    return {
+        limb: torch.isin(body.part_labels, parts.to(body.part_labels.device))
+        for limb, parts in LIMB_PART_INDICES.items()
+    }
 
 
 def _per_vertex_uncertainty(network, proxy, body, samples: int, seed: int) -> torch.Tensor:
@@ -59,9 +66,7 @@ def _per_vertex_uncertainty(network, proxy, body, samples: int, seed: int) -> to
     output = network(proxy)
     generator = torch.Generator(device=proxy.device).manual_seed(seed)
     poses = output.pose_distribution().sample(samples, generator=generator)  # (S, B, 23, 3, 3)
-    noise = torch.randn((samples, *output.shape_mean.shape), generator=generator,
-                        device=proxy.device)  # fmt: skip
-    betas = output.shape_mean + output.shape_std * noise
+    betas = output.sample_betas(samples, generator)
     result = []
     for item in range(proxy.shape[0]):
         orient = output.global_orient[item].expand(samples, 3, 3)
@@ -93,7 +98,6 @@ def occlusion_response(
     body = generator.body
     masks = _limb_vertex_masks(body)
     limbs = list(LIMB_PARTS)
-    index = {name: i for i, name in enumerate(SMPL_JOINT_NAMES)}
     results: list[OcclusionCase] = []
     batch_index = 0
     while len(results) < cases:
@@ -104,22 +108,16 @@ def occlusion_response(
         covered_images, covered_present, chosen = [], [], []
         for item in range(batch_size):
             limb = limbs[(len(results) + len(chosen)) % len(limbs)]
-            parts = torch.tensor([index[p] for p in LIMB_PARTS[limb]])
-            pixels = torch.isin(rendered.part_map[item].cpu(), parts).nonzero()
+            pixels = torch.isin(rendered.part_map[item].cpu(), LIMB_PART_INDICES[limb]).nonzero()
             if len(pixels) < MIN_LIMB_PIXELS:
                 continue
             (y0, x0), (y1, x1) = pixels.amin(0).tolist(), pixels.amax(0).tolist()
             x0, y0 = max(0, x0 - margin), max(0, y0 - margin)
             x1, y1 = min(size, x1 + margin + 1), min(size, y1 + margin + 1)
-            image = rendered.images[item].copy()
-            image[y0:y1, x0:x1] = 0
-            points = rendered.input_keypoints[item].cpu()
-            under = (
-                (points[:, 0] >= x0 - 0.5) & (points[:, 0] < x1 - 0.5)
-                & (points[:, 1] >= y0 - 0.5) & (points[:, 1] < y1 - 0.5)
-            )  # fmt: skip
-            covered_images.append(image)
-            covered_present.append(rendered.input_present[item].cpu() & ~under)
+            box = [(x0, y0, x1, y1)]
+            under = points_under_boxes(rendered.input_keypoints[item].cpu().numpy(), box)
+            covered_images.append(apply_occluders(rendered.images[item], box))
+            covered_present.append(rendered.input_present[item].cpu() & ~torch.from_numpy(under))
             chosen.append((item, limb))
         if not chosen:
             continue

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import torch
 
 from hkpd.body.body_model import BodyModel
+from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
 from hkpd.evaluation.metrics import (
     MIN_OF_N_COUNTS,
@@ -26,7 +27,6 @@ from hkpd.evaluation.metrics import (
 )
 from hkpd.network.output import NetworkOutput
 
-PELVIS = 0
 SAMPLES_FOR_2D_ERROR = 10
 """The paper's "2D Joint Err. Samples" uses 10 sampled bodies per image."""
 
@@ -48,12 +48,6 @@ class EvaluationTargets:
     betas: torch.Tensor | None = None
     keypoints2d: torch.Tensor | None = None
     visible: torch.Tensor | None = None
-
-
-def _pose_bodies(body, betas, body_pose, global_orient):
-    posed = body(betas, body_pose, global_orient)
-    pelvis = posed.joints[:, PELVIS : PELVIS + 1]
-    return posed.joints - pelvis, posed.keypoints - pelvis
 
 
 @torch.no_grad()
@@ -87,7 +81,9 @@ def evaluate_prediction(
         raise ValueError("targets.keypoints2d needs targets.visible (use all-True if unknown)")
     results: dict[str, torch.Tensor] = {}
     pose = output.pose_distribution()
-    joints, keypoints = _pose_bodies(body, output.shape_mean, pose.mode, output.global_orient)
+    keypoints, joints = pelvis_relative_body(
+        body, output.shape_mean, pose.mode, output.global_orient
+    )
     if targets.joints3d is not None:
         results["mpjpe"] = mpjpe(joints, targets.joints3d)
         results["mpjpe_sc"] = mpjpe_scale_corrected(joints, targets.joints3d)
@@ -108,17 +104,11 @@ def evaluate_prediction(
         return results
 
     poses = pose.sample(num_samples, generator=generator)
-    noise = torch.randn(
-        (num_samples, *output.shape_mean.shape),
-        generator=generator,
-        dtype=output.shape_mean.dtype,
-        device=output.shape_mean.device,
-    )
-    betas = output.shape_mean + output.shape_std * noise
+    betas = output.sample_betas(num_samples, generator)
     per_sample: dict[str, list[torch.Tensor]] = {"mpjpe": [], "mpjpe_pa": [], "pve_t_sc": []}
     sample_keypoints = []
     for index in range(num_samples):  # one sample per pass keeps the memory bounded
-        sample_joints, sample_kp = _pose_bodies(
+        sample_kp, sample_joints = pelvis_relative_body(
             body, betas[index], poses[index], output.global_orient
         )
         sample_keypoints.append(sample_kp)

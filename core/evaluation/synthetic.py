@@ -8,10 +8,10 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import CROP_SIZE
+from hkpd.evaluation.metrics import MILLIMETRES_PER_METRE
 from hkpd.evaluation.prediction_metrics import EvaluationTargets, evaluate_prediction
 from hkpd.synthesis.batch import TrainingBatch
 
-MILLIMETRES_PER_METRE = 1000.0
 _METRES = ("mpjpe", "pve_t_sc", "diversity")
 
 

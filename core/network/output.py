@@ -44,6 +44,17 @@ class NetworkOutput:
         """The diagonal Gaussian over shape coefficients (batch ``(B,)``, event ``(K,)``)."""
         return body_shape_distribution(self.shape_mean, self.shape_std)
 
+    def sample_betas(self, count: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        """``(count, B, K)`` shape coefficients drawn from the shape Gaussian, reparameterised
+        (``mean + std * noise``, so gradients reach ``shape_mean`` and ``shape_std``)."""
+        noise = torch.randn(
+            (count, *self.shape_mean.shape),
+            generator=generator,
+            dtype=self.shape_mean.dtype,
+            device=self.shape_mean.device,
+        )
+        return self.shape_mean + self.shape_std * noise
+
     def detach(self) -> NetworkOutput:
         """A copy with every tensor detached from the autograd graph."""
         return NetworkOutput(**{f.name: getattr(self, f.name).detach() for f in fields(self)})

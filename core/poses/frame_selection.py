@@ -5,20 +5,6 @@ from __future__ import annotations
 import torch
 
 
-def joint_angle_changes(reference: torch.Tensor, poses: torch.Tensor) -> torch.Tensor:
-    """Rotation angle between a reference pose and each pose, per joint.
-
-    Args:
-        reference: ``(J, 3, 3)`` rotations.
-        poses: ``(F, J, 3, 3)`` rotations.
-
-    Returns:
-        ``(F, J)`` angles in degrees.
-    """
-    traces = (reference.unsqueeze(0) * poses).sum(dim=(-1, -2))  # trace(reference^T @ pose)
-    return torch.rad2deg(torch.arccos(((traces - 1) / 2).clamp(-1.0, 1.0)))
-
-
 def select_distinct_frames(body_pose: torch.Tensor, min_change_deg: float) -> torch.Tensor:
     """Greedy subsampling: keep the first frame, then every frame in which some joint has turned
     by at least ``min_change_deg`` since the last kept frame.

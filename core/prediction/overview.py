@@ -23,16 +23,11 @@ import numpy as np
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
+from hkpd.coco_keypoints import COCO17_LIMBS
 from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.uncertainty_colours import UncertaintyColourScale, vertex_to_face_values
 from hkpd.rendering import Lighting, MeshRenderer
-
-COCO_SKELETON = (
-    (15, 13), (13, 11), (16, 14), (14, 12), (11, 12), (5, 11), (6, 12), (5, 6), (5, 7), (6, 8),
-    (7, 9), (8, 10), (1, 2), (0, 1), (0, 2), (1, 3), (2, 4), (3, 5), (4, 6),
-)  # fmt: skip
-"""Pairs of COCO-17 keypoint indices joined by a bone."""
 
 CONFIDENT = 0.5
 """Detected keypoints below this confidence are drawn hollow."""
@@ -193,7 +188,7 @@ def draw_skeletons(
 def _draw_bones(
     draw: ImageDraw.ImageDraw, points: np.ndarray, colour: tuple[int, ...], width: int
 ) -> None:
-    for first, second in COCO_SKELETON:
+    for first, second in COCO17_LIMBS:
         start, end = points[first], points[second]
         if np.isfinite(start).all() and np.isfinite(end).all():
             draw.line([tuple(start), tuple(end)], fill=colour, width=width, joint="curve")

@@ -108,10 +108,10 @@ class MeshRenderer:
         self.smooth_normals = smooth_normals
         self.cull_backfaces = cull_backfaces
         self.chunk = chunk
-        self.corners = [self.faces[:, k].contiguous() for k in range(3)]
         self.rasterizer = ChunkRasterizer(
             self.faces, image_size, cull_backfaces, DEFAULT_NEAR, self.device
         )
+        self.corners = self.rasterizer.corners
 
     @property
     def num_faces(self) -> int:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import torch
 
-from hkpd.synthesis.visibility import COCO17_LEFT_RIGHT_PAIRS
+from hkpd.coco_keypoints import COCO17_LEFT_RIGHT_PAIRS
 
 
 @dataclass(frozen=True)

@@ -15,18 +15,13 @@ import cv2
 import numpy as np
 import torch
 
+from hkpd.coco_keypoints import COCO17_LIMBS
 from hkpd.synthesis.generator import (
     RenderedBatch,
     SyntheticDataConfig,
     SyntheticDataGenerator,
     batch_seed,
 )
-
-COCO17_LIMBS: tuple[tuple[int, int], ...] = (
-    (0, 1), (0, 2), (1, 3), (2, 4), (5, 6), (5, 7), (7, 9), (6, 8), (8, 10), (5, 11), (6, 12),
-    (11, 12), (11, 13), (13, 15), (12, 14), (14, 16),
-)  # fmt: skip
-"""Pairs of COCO-17 keypoints joined by a skeleton line."""
 
 _JOINT_COLOURS = (
     np.array(

@@ -9,9 +9,20 @@ rendered surface there is no more than ``depth_tolerance`` in front of the keypo
 
 from __future__ import annotations
 
+import functools
+
 import torch
 
+from hkpd.coco_keypoints import COCO17_LEFT_RIGHT_PAIRS, COCO17_NAMES
 from hkpd.kinematic_tree import SMPL_JOINT_NAMES
+
+__all__ = [
+    "COCO17_LEFT_RIGHT_PAIRS",
+    "COCO17_NAMES",
+    "COCO17_OWN_PARTS",
+    "keypoint_visibility",
+    "own_part_table",
+]
 
 _PART = {name: index for index, name in enumerate(SMPL_JOINT_NAMES)}
 
@@ -33,28 +44,17 @@ def _sided(side: str) -> dict[str, tuple[int, ...]]:
     }
 
 
-COCO17_NAMES: tuple[str, ...] = (
-    "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
-    "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip",
-    "left_knee", "right_knee", "left_ankle", "right_ankle",
-)  # fmt: skip
-"""The COCO-17 keypoint names, in COCO order (also ``BodyModel`` keypoint order)."""
-
 _OWN_PARTS = {"nose": _parts("head", "neck"), **_sided("left"), **_sided("right")}
 COCO17_OWN_PARTS: tuple[tuple[int, ...], ...] = tuple(_OWN_PARTS[name] for name in COCO17_NAMES)
 """Per COCO keypoint, the body parts (SMPL joint groups) whose surface may cover it."""
 
-COCO17_LEFT_RIGHT_PAIRS: tuple[tuple[int, int], ...] = (
-    (5, 6), (7, 8), (9, 10), (11, 12), (13, 14), (15, 16),
-)  # fmt: skip
-"""Left/right pairs swapped by the L/R-swap augmentation: shoulders, elbows, wrists, hips,
-knees, ankles (the supplement's list)."""
 
-
+@functools.cache
 def own_part_table(num_parts: int = 24, device: torch.device | None = None) -> torch.Tensor:
     """``(17, num_parts + 1)`` bool: ``table[k, p + 1]`` says part p may cover keypoint k.
 
     Column 0 stands for background (part -1) and is True: a keypoint over background is seen.
+    Built once per device (cached); do not modify the returned tensor.
     """
     table = torch.zeros(len(COCO17_NAMES), num_parts + 1, dtype=torch.bool, device=device)
     table[:, 0] = True

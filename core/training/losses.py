@@ -20,16 +20,15 @@ from __future__ import annotations
 import torch
 
 from hkpd.body.body_model import BodyModel
+from hkpd.body.root_relative import PELVIS, pelvis_relative_body
 from hkpd.camera_conventions import pixels_to_ndc, weak_perspective_project
 from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
+from hkpd.evaluation.alignment import root_align
 from hkpd.kinematic_tree import BODY_PARENTS
 from hkpd.network.output import NetworkOutput
 from hkpd.network.output_decoding import full_precision
 from hkpd.synthesis.batch import TrainingBatch
 from hkpd.training.schedule import LossWeights
-
-PELVIS = 0
-"""Index of the root joint among the body model's 24 joints."""
 
 
 def shape_nll(mean: torch.Tensor, std: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
@@ -45,20 +44,22 @@ def shape_nll(mean: torch.Tensor, std: torch.Tensor, betas: torch.Tensor) -> tor
     return -body_shape_distribution(mean, std).log_prob(betas).mean()
 
 
-def pose_nll(F: torch.Tensor, body_pose: torch.Tensor) -> torch.Tensor:
+def pose_nll(F: torch.Tensor | KinematicMatrixFisher, body_pose: torch.Tensor) -> torch.Tensor:
     """Matrix-Fisher NLL of the relative joint rotations (paper Eq. 8).
 
     ``log c(F_i) - tr(F_i^T R_i)`` summed over the 23 joints, mean over the batch; the normaliser
     is exact and differentiable.
 
     Args:
-        F: ``(B, 23, 3, 3)`` predicted parameters.
+        F: ``(B, 23, 3, 3)`` predicted parameters, or the distribution already built from them
+            (which reuses its cached SVD).
         body_pose: ``(B, 23, 3, 3)`` ground-truth relative rotations.
 
     Returns:
         Scalar.
     """
-    return -KinematicMatrixFisher(F, BODY_PARENTS).log_prob(body_pose).mean()
+    pose = F if isinstance(F, KinematicMatrixFisher) else KinematicMatrixFisher(F, BODY_PARENTS)
+    return -pose.log_prob(body_pose).mean()
 
 
 def global_rotation_loss(predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
@@ -106,35 +107,8 @@ def joints3d_loss(predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor
     Returns:
         Scalar.
     """
-    predicted = predicted - predicted[:, PELVIS : PELVIS + 1]
-    target = target - target[:, PELVIS : PELVIS + 1]
+    predicted, target = root_align(predicted, PELVIS), root_align(target, PELVIS)
     return (predicted - target).square().sum(-1).mean()
-
-
-def pelvis_relative_body(
-    body: BodyModel, betas: torch.Tensor, body_pose: torch.Tensor, global_orient: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Pose bodies and return their COCO keypoints and joints relative to the posed pelvis.
-
-    Uses the body model's full forward pass (vertices included); see ``docs/network.md`` for
-    the keypoints-only path requested from :class:`BodyModel`.
-
-    Args:
-        body: the body model (keypoint regressor required).
-        betas: ``(N, K)``; body_pose ``(N, 23, 3, 3)``; global_orient ``(N, 3, 3)``.
-
-    Returns:
-        ``keypoints (N, 17, 3)`` and ``joints (N, 24, 3)``, metres, camera-frame axes when
-        ``global_orient`` is body-to-camera.
-    """
-    posed = body(betas, body_pose, global_orient)
-    if posed.keypoints is None:
-        raise ValueError(
-            "the body model has no keypoint regressor (an SMPL file); the 2D losses need COCO "
-            "keypoints: use the shipped hkpd body model"
-        )
-    pelvis = posed.joints[:, PELVIS : PELVIS + 1]
-    return posed.keypoints - pelvis, posed.joints - pelvis
 
 
 def compute_losses(
@@ -189,14 +163,14 @@ def _compute_losses(
         )
     output = NetworkOutput(**{name: full_precision(value) for name, value in vars(output).items()})
     terms: dict[str, torch.Tensor] = {}
+    pose = output.pose_distribution()
     if weights.shape_nll > 0:
         terms["shape_nll"] = shape_nll(output.shape_mean, output.shape_std, batch.betas)
     if weights.pose_nll > 0:
-        terms["pose_nll"] = pose_nll(output.F, batch.body_pose)
+        terms["pose_nll"] = pose_nll(pose, batch.body_pose)
     if weights.global_rotation > 0:
         terms["global_rotation"] = global_rotation_loss(output.global_orient, batch.global_orient)
 
-    pose = output.pose_distribution()
     target_ndc = pixels_to_ndc(batch.keypoints2d.to(output.F.dtype), crop_size)
     if weights.joints2d_mode > 0 or weights.joints3d_mode > 0:
         keypoints, joints = pelvis_relative_body(
@@ -230,13 +204,7 @@ def _samples_reprojection_loss(
     """2D loss of ``num_samples`` reparameterised pose and shape samples per example."""
     batch = output.batch_size
     poses = pose.rsample(num_samples, generator=generator)  # (S, B, 23, 3, 3)
-    noise = torch.randn(
-        (num_samples, *output.shape_mean.shape),
-        generator=generator,
-        dtype=output.shape_mean.dtype,
-        device=output.shape_mean.device,
-    )
-    betas = output.shape_mean + output.shape_std * noise  # reparameterised, (S, B, K)
+    betas = output.sample_betas(num_samples, generator)  # reparameterised, (S, B, K)
     orient = output.global_orient.expand(num_samples, batch, 3, 3)
     keypoints, _ = pelvis_relative_body(
         body, betas.flatten(0, 1), poses.flatten(0, 1), orient.flatten(0, 1)
