@@ -100,3 +100,21 @@ def ancestors(parents: Sequence[int], joint: int) -> list[int]:
         chain.append(parent)
         parent = checked[parent]
     return chain
+
+
+def body_joint_index(joint: int | str) -> int:
+    """Index among the 23 body joints of a name (``"left_elbow"``) or an index.
+
+    Raises:
+        ValueError: an unknown name (the message lists the names).
+        IndexError: an index outside 0..22.
+    """
+    if isinstance(joint, str):
+        if joint not in BODY_JOINT_NAMES:
+            raise ValueError(
+                f"unknown joint {joint!r}; body joints are {', '.join(BODY_JOINT_NAMES)}"
+            )
+        return BODY_JOINT_NAMES.index(joint)
+    if not 0 <= int(joint) < len(BODY_JOINT_NAMES):
+        raise IndexError(f"joint index {joint} is outside 0..{len(BODY_JOINT_NAMES) - 1}")
+    return int(joint)

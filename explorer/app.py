@@ -30,6 +30,7 @@ from hkpd.explorer.scene import HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
 from hkpd.explorer.state import ExplorerState
 from hkpd.explorer.upload import UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
+from hkpd.kinematic_tree import body_joint_index
 
 PREDICTION_DEBOUNCE_S = 0.12
 """Occluder edits closer together than this trigger one prediction."""
@@ -275,7 +276,7 @@ class ExplorerApp:
         with self._lock:
             self._view = view
         index = list(snapshot.concentration_factors)
-        joint_factor = index[_joint_index(snapshot.selected_joint)]
+        joint_factor = index[body_joint_index(snapshot.selected_joint)]
         self.panels.show_teaching(view.axes.joint, view.axes.concentrations, joint_factor)
         self.panels.show_status(
             f"Prediction {self.timings.predict * 1000:.0f} ms · "
@@ -390,12 +391,6 @@ def photo_placement(result: PredictionResult, width: int, height: int) -> PhotoP
     width_m = height_m * width / height
     centre_x = -(PHOTO_GAP + width_m / 2)
     return PhotoPlacement(width, height, (centre_x, float(centre_y), 0.0), height_m)
-
-
-def _joint_index(joint: str) -> int:
-    from hkpd.kinematic_tree import BODY_JOINT_NAMES
-
-    return BODY_JOINT_NAMES.index(joint)
 
 
 def _check_image(image: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import viser.transforms
 
 HALF_TURN_ABOUT_X = (0.0, 1.0, 0.0, 0.0)
 """``wxyz`` of the photo and body nodes: OpenCV axes inside a y-up world."""
@@ -135,12 +136,6 @@ def screen_rect_to_box(
 
 
 def quaternion_to_matrix(wxyz: np.ndarray) -> np.ndarray:
-    """``(3, 3)`` rotation matrix of a unit quaternion ``(w, x, y, z)``."""
-    w, x, y, z = np.asarray(wxyz, dtype=np.float64) / np.linalg.norm(wxyz)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """``(3, 3)`` rotation matrix of a quaternion ``(w, x, y, z)`` (normalised first)."""
+    quaternion = np.asarray(wxyz, dtype=np.float64)
+    return viser.transforms.SO3(quaternion / np.linalg.norm(quaternion)).as_matrix()

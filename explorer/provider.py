@@ -51,39 +51,15 @@ class PredictorProvider:
     """Adapter from :class:`hkpd.prediction.Predictor` to :class:`PosteriorProvider`.
 
     The predictor is loaded on construction (``Predictor.from_pretrained(path, device)``).
-    The proxy is ``posterior.network_input.proxy`` (what the network saw); failing that, the
-    first of the attributes ``posterior_proxy``, ``last_proxy`` or ``proxy`` that the posterior
-    or the predictor has.
+    The proxy shown is ``posterior.network_input.proxy``, what the network saw.
     """
 
-    PROXY_ATTRIBUTES = ("posterior_proxy", "last_proxy", "proxy")
-
     def __init__(self, path: str | Path | None = None, device: str = "auto") -> None:
-        try:
-            from hkpd.prediction import Predictor  # type: ignore[attr-defined]
-        except ImportError as error:
-            raise RuntimeError(
-                "hkpd.prediction.Predictor is not available in this installation; "
-                "the explorer needs it to predict from photos"
-            ) from error
+        from hkpd.prediction import Predictor
+
         self.predictor: Any = Predictor.from_pretrained(path, device=device)
 
     def predict(self, image: np.ndarray, occluders: Sequence[Box]) -> PredictionResult:
         boxes = [tuple(map(float, box)) for box in occluders] or None
         posterior = self.predictor.predict(image, occluders=boxes)
-        network_input = getattr(posterior, "network_input", None)
-        proxy = getattr(network_input, "proxy", None)
-        proxy = proxy.detach().cpu() if isinstance(proxy, torch.Tensor) else None
-        for owner in (posterior, self.predictor):
-            if proxy is not None:
-                break
-            for name in self.PROXY_ATTRIBUTES:
-                value = getattr(owner, name, None)
-                if isinstance(value, torch.Tensor):
-                    proxy = value.detach().cpu()
-                    break
-            if proxy is not None:
-                break
-        if proxy is not None and proxy.dim() == 4:
-            proxy = proxy[0]
-        return PredictionResult(posterior=posterior, proxy=proxy)
+        return PredictionResult(posterior=posterior, proxy=posterior.network_input.proxy.cpu())

@@ -18,30 +18,11 @@ import threading
 import numpy as np
 import viser
 
-from hkpd.explorer.colour_map import legend_image, uncertainty_colours
+from hkpd.coco_keypoints import COCO17_LIMBS
+from hkpd.explorer.colour_map import DEFAULT_MAX_CM, legend_image, uncertainty_colours
 from hkpd.explorer.photo_geometry import HALF_TURN_ABOUT_X, PhotoPlacement
 from hkpd.explorer.posterior_view import PosteriorView
 from hkpd.explorer.state import Occluder
-
-COCO_BONES = (
-    (5, 7),
-    (7, 9),
-    (6, 8),
-    (8, 10),
-    (5, 6),
-    (5, 11),
-    (6, 12),
-    (11, 12),
-    (11, 13),
-    (13, 15),
-    (12, 14),
-    (14, 16),
-    (0, 1),
-    (0, 2),
-    (1, 3),
-    (2, 4),
-)
-"""COCO-17 skeleton edges."""
 
 MODE_COLOUR = (236, 168, 128)
 SAMPLE_COLOUR = (90, 150, 235)
@@ -74,7 +55,7 @@ class ExplorerScene:
         self.show_samples = True
         self.show_heatmap = True
         self.show_reprojection = True
-        self.heatmap_max_cm = 15.0
+        self.heatmap_max_cm = DEFAULT_MAX_CM
         self._lock = threading.RLock()
         self._samples: list[viser.MeshHandle] = []
         self._mode: viser.MeshHandle | None = None
@@ -342,7 +323,7 @@ class ExplorerScene:
     def _update_reprojection(self, view: PosteriorView) -> None:
         if self.placement is None:
             return
-        bones = np.array(COCO_BONES)
+        bones = np.array(COCO17_LIMBS)
         shown = view.sample_keypoints2d[: max(len(view.sample_vertices), 1)]
         segments = self._photo_points(shown[:, bones].reshape(-1, 2, 2))
         mode_segments = self._photo_points(view.mode_keypoints2d[bones])

@@ -14,11 +14,9 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
-from hkpd.kinematic_tree import BODY_JOINT_NAMES
+from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
 
 NUM_BODY_JOINTS = len(BODY_JOINT_NAMES)
 
@@ -138,12 +136,6 @@ class ExplorerState:
     _lock: threading.RLock = field(default_factory=threading.RLock, repr=False)
 
     # ------------------------------------------------------------------ reading
-    @contextmanager
-    def locked(self) -> Iterator[ExplorerState]:
-        """Hold the lock for a multi-step read-modify-write."""
-        with self._lock:
-            yield self
-
     def snapshot(self) -> StateSnapshot:
         """A consistent immutable copy of everything."""
         with self._lock:
@@ -235,7 +227,7 @@ class ExplorerState:
     # ------------------------------------------------------------------ sampling controls
     def set_joint_exponent(self, joint: str, exponent: float) -> bool:
         """log10 of one joint's concentration factor, clipped to [-1, 1]."""
-        index = _joint_position(joint)
+        index = body_joint_index(joint)
         value = _clip_exponent(exponent)
         with self._lock:
             if self._joint_exponents[index] == value:
@@ -318,7 +310,7 @@ class ExplorerState:
 
     def select_joint(self, joint: str) -> bool:
         """The joint shown in the teaching panel."""
-        _joint_position(joint)
+        body_joint_index(joint)
         with self._lock:
             if joint == self.selected_joint:
                 return False
@@ -332,12 +324,6 @@ class ExplorerState:
             if occluder.ident == ident:
                 return index
         raise KeyError(f"no occluder with id {ident}")
-
-
-def _joint_position(joint: str) -> int:
-    if joint not in BODY_JOINT_NAMES:
-        raise ValueError(f"unknown joint {joint!r}; body joints are {', '.join(BODY_JOINT_NAMES)}")
-    return BODY_JOINT_NAMES.index(joint)
 
 
 def _clip_exponent(exponent: float) -> float:

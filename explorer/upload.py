@@ -8,15 +8,12 @@ from pathlib import PurePath
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from hkpd.prediction.image_input import ImageInputError, load_image
+from hkpd.prediction.image_input import IMAGE_SUFFIXES, ImageInputError, load_image
 
 MAX_UPLOAD_BYTES = 25 * 1024 * 1024
 """Uploads larger than this are refused."""
 
-ALLOWED_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff")
-
-MIN_SIDE = 32
-"""Photos smaller than this (pixels) cannot show a person well enough to predict."""
+ALLOWED_SUFFIXES = IMAGE_SUFFIXES
 
 
 class UploadError(ValueError):
@@ -53,11 +50,10 @@ def decode_upload(name: str, content: bytes) -> np.ndarray:
         with Image.open(io.BytesIO(content)) as opened:
             opened.load()
             loaded = load_image(opened)
-    except (UnidentifiedImageError, OSError, ImageInputError) as error:
+    except (UnidentifiedImageError, OSError) as error:
         raise UploadError(
             f"{name!r} could not be read as an image (corrupt or not a photo): {error}"
         ) from error
-    width, height = loaded.size
-    if min(height, width) < MIN_SIDE:
-        raise UploadError(f"{name!r} is only {width}x{height} pixels; need at least {MIN_SIDE}")
+    except ImageInputError as error:  # readable, but unusable (e.g. too small)
+        raise UploadError(f"{name!r} cannot be used: {error}") from error
     return np.ascontiguousarray(loaded.pixels)

@@ -112,12 +112,6 @@ class CoalescingWorker:
                 self._condition.wait(min(remaining, 0.05))
             return True
 
-    @property
-    def busy(self) -> bool:
-        """True while a job runs or waits."""
-        with self._condition:
-            return bool(self._pending) or self._running is not None
-
     # ------------------------------------------------------------------ thread
     def _next_due(self) -> tuple[str, Job] | None:
         """Pop the highest-priority due job (caller holds the condition)."""

@@ -203,7 +203,9 @@ class KinematicMatrixFisher(Distribution):
             factor = factor.unsqueeze(-1)
         scale = torch.where(mask, factor, torch.ones_like(factor))
         scaled = self.joints.with_singular_values(self.joints.S * scale.unsqueeze(-1))
-        return KinematicMatrixFisher(scaled.F, self.parents, validate_args=self._validate_args)
+        edited = KinematicMatrixFisher(scaled.F, self.parents, validate_args=self._validate_args)
+        edited.joints = scaled  # keeps the SVD and sampler frames that scaled reuses
+        return edited
 
     def expand(self, batch_shape, _instance=None) -> KinematicMatrixFisher:
         batch_shape = torch.Size(batch_shape)

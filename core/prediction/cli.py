@@ -47,9 +47,10 @@ from hkpd.prediction.exports import (
     write_json,
     write_mesh,
 )
+from hkpd.prediction.image_input import IMAGE_SUFFIXES
 from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
 
-IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff")
+IMAGE_EXTENSIONS = IMAGE_SUFFIXES
 """Files with these extensions (any case) are taken from folders."""
 
 DEFAULT_FORMATS = ("ply", "npz")

@@ -47,6 +47,10 @@ MIN_IMAGE_SIDE = 32
 _EXIF_ORIENTATION_TAG = 0x0112
 
 
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff")
+"""File suffixes (any case) taken as photos by the command line and the explorer's upload."""
+
+
 class ImageInputError(ValueError):
     """The input is not an image the predictor can use; the message says why and what to do."""
 

@@ -9,6 +9,7 @@ of the OpenCV camera (x right, y down, z away from the viewer), metres.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
@@ -18,7 +19,7 @@ import torch
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
-from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
+from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS, body_joint_index
 from hkpd.uncertainty import vertex_uncertainty
 
 
@@ -55,19 +56,6 @@ class BodyMeshes:
     body_pose: torch.Tensor
 
 
-def joint_index(joint: int | str) -> int:
-    """Index among the 23 body joints of a name (``"left_elbow"``) or an index."""
-    if isinstance(joint, str):
-        if joint not in BODY_JOINT_NAMES:
-            raise ValueError(
-                f"unknown joint {joint!r}; body joints are {', '.join(BODY_JOINT_NAMES)}"
-            )
-        return BODY_JOINT_NAMES.index(joint)
-    if not 0 <= int(joint) < len(BODY_JOINT_NAMES):
-        raise IndexError(f"joint index {joint} is outside 0..{len(BODY_JOINT_NAMES) - 1}")
-    return int(joint)
-
-
 @dataclass(frozen=True)
 class BodyPosterior:
     """The body distribution predicted for one person.
@@ -82,9 +70,6 @@ class BodyPosterior:
         keypoints: ``(17, 2)`` detected COCO keypoints, original-image pixels.
         confidences: ``(17,)`` their detector confidences.
         body: the body model used to turn parameters into meshes.
-        concentration_scales: ``(23,)`` the factors applied to the predicted concentrations
-            (all ones for the network's own prediction).
-        shape_std_scale: the factor applied to the predicted shape standard deviations.
         network_input: what the network saw (proxy, crop, detection), when the posterior came
             from a photo through :class:`hkpd.prediction.Predictor`.
     """
@@ -98,13 +83,12 @@ class BodyPosterior:
     keypoints: torch.Tensor
     confidences: torch.Tensor
     body: BodyModel
-    concentration_scales: torch.Tensor | None = None
-    shape_std_scale: float = 1.0
     network_input: Any = None
 
-    @property
+    @functools.cached_property
     def pose_distribution(self) -> KinematicMatrixFisher:
-        """The hierarchical matrix-Fisher distribution, batch shape ``(1,)``."""
+        """The hierarchical matrix-Fisher distribution, batch shape ``(1,)``; built (with its
+        SVD) once per posterior."""
         return KinematicMatrixFisher(self.F[None], BODY_PARENTS)
 
     @property
@@ -172,23 +156,18 @@ class BodyPosterior:
         if joint is None:
             selected = list(range(len(BODY_JOINT_NAMES)))
         elif isinstance(joint, (int, str)):
-            selected = [joint_index(joint)]
+            selected = [body_joint_index(joint)]
         else:
-            selected = [joint_index(j) for j in joint]
+            selected = [body_joint_index(j) for j in joint]
         scaled = self.pose_distribution.scale_concentration(selected, factor)
-        scales = self._scales().clone()
-        scales[selected] *= factor
-        return replace(self, F=scaled.F[0], concentration_scales=scales)
+        edited = replace(self, F=scaled.F[0])
+        edited.__dict__["pose_distribution"] = scaled  # keeps the reused SVD (cached_property)
+        return edited
 
     def with_shape_std(self, factor: float) -> BodyPosterior:
         """A posterior whose shape standard deviations are scaled by ``factor`` (> 0)."""
         if factor <= 0:
             raise ValueError(f"shape std factor must be positive, got {factor}")
-        return replace(
-            self, shape_std=self.shape_std * factor, shape_std_scale=self.shape_std_scale * factor
-        )
-
-    def _scales(self) -> torch.Tensor:
-        if self.concentration_scales is None:
-            return torch.ones(len(BODY_JOINT_NAMES), dtype=self.F.dtype, device=self.F.device)
-        return self.concentration_scales
+        edited = replace(self, shape_std=self.shape_std * factor)
+        edited.__dict__["pose_distribution"] = self.pose_distribution  # pose unchanged
+        return edited
