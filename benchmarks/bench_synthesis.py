@@ -1,7 +1,11 @@
 """Throughput of the synthetic data generator (samples/s), with a per-stage breakdown.
 
 Usage: python benchmarks/bench_synthesis.py [--batch-sizes 16 32 64] [--image-size 256]
-       [--poses poses.npz] [--device cpu] [--threads 2] [--repeats 5]
+       [--poses poses.npz] [--device cpu] [--threads 2] [--repeats 5] [--workers 1 2]
+       [--no-keep-memory]
+
+Like training, it first asks glibc to keep freed memory (:mod:`hkpd.cpu_allocator`);
+``--no-keep-memory`` measures the default allocator instead.
 
 Prints a markdown table; results are recorded in docs/benchmarks.md.
 """
@@ -17,6 +21,7 @@ import numpy as np
 import torch
 from timing import call_times
 
+from hkpd.cpu_allocator import keep_freed_memory
 from hkpd.poses import pose_source
 from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator, batch_seed
@@ -42,7 +47,13 @@ def main() -> None:
         default=[],
         help="also time the multi-process stream (ParallelBatches) with these worker counts",
     )
+    parser.add_argument(
+        "--no-keep-memory",
+        action="store_true",
+        help="leave glibc's allocator as it is (large blocks mapped and unmapped every batch)",
+    )
     args = parser.parse_args()
+    kept = False if args.no_keep_memory else keep_freed_memory()
     torch.set_num_threads(args.threads)
     device = torch.device(args.device)
     sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
@@ -54,7 +65,8 @@ def main() -> None:
     renderer = generator.renderer.render
     print(f"machine: {platform.processor() or platform.machine()}, torch "
           f"{torch.__version__}, threads {torch.get_num_threads()}, device {device}, "
-          f"{args.image_size} px, poses {'bank' if args.poses else 'procedural'}")  # fmt: skip
+          f"{args.image_size} px, poses {'bank' if args.poses else 'procedural'}, "
+          f"freed memory kept: {kept}")  # fmt: skip
     print()
     print("| B | whole batch: median (best) ms | samples/s (median) | body model ms | render ms "
           "| proxy (Canny + heatmaps) ms |")  # fmt: skip
@@ -102,12 +114,15 @@ def time_parallel(args) -> None:
     from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
 
     spec = GeneratorSpec(poses=args.poses, config=SyntheticDataConfig(image_size=args.image_size))
+    torch.set_num_threads(1)  # the consumer only draws heatmaps; the cores go to the workers
     print()
-    print("| workers | B | samples/s (stream, after warm-up) |")
+    print("| workers | B | samples/s (stream, after warm-up; consumer 1 thread) |")
     print("|---|---|---|")
     for workers in args.workers:
         for size in args.batch_sizes:
-            with ParallelBatches(spec, size, seed=1, workers=workers) as stream:
+            with ParallelBatches(
+                spec, size, seed=1, workers=workers, keep_memory=not args.no_keep_memory
+            ) as stream:
                 for _ in range(2 * workers):  # warm-up: start the processes, fill the queues
                     next(stream)
                 count = max(4, args.repeats) * workers

@@ -41,6 +41,15 @@ def test_half_image_rate_and_extent() -> None:
     blanked = mask.flatten(1).any(1)
     assert abs(float(blanked.float().mean()) - 0.05) < tolerance(0.05)
     assert set(mask.flatten(1).sum(1)[blanked].tolist()) == {32 * 16}
+    rows = torch.arange(32)[:, None].expand(32, 32)
+    cols = torch.arange(32)[None, :].expand(32, 32)
+    halves = [rows < 16, rows >= 16, cols < 16, cols >= 16]  # top, bottom, left, right
+    seen = set()
+    for image_mask in mask[blanked]:
+        matches = [k for k, half in enumerate(halves) if torch.equal(image_mask, half)]
+        assert len(matches) == 1
+        seen.add(matches[0])
+    assert seen == {0, 1, 2, 3}
 
 
 def test_body_part_occlusion_rate_and_only_body_pixels() -> None:

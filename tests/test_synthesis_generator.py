@@ -117,3 +117,13 @@ def test_worker_processes_give_the_same_stream(generator) -> None:
     in_process = iter(SyntheticBatches(generator, batch_size=2, seed=9, start=1))
     for batch in from_workers:
         torch.testing.assert_close(batch.proxy, next(in_process).proxy)
+
+
+def test_packed_batch_unpacks_to_the_generated_batch(generator) -> None:
+    packed = generator.generate_packed(3, seed=11)
+    assert packed.edge_bits.dtype == torch.uint8
+    assert packed.edge_bits.shape == (3, SIZE, SIZE)
+    unpacked = packed.unpack()
+    direct = generator.generate(3, seed=11).batch
+    for name in ("proxy", "body_pose", "betas", "keypoints2d", "visible", "joints3d"):
+        torch.testing.assert_close(getattr(unpacked, name), getattr(direct, name))

@@ -24,6 +24,12 @@ def canny_edges(image_rgb: np.ndarray) -> np.ndarray:
     Raises:
         ValueError: the image is not ``(H, W, 3)`` uint8.
     """
+    return canny_edge_bits(image_rgb).astype(np.float32)
+
+
+def canny_edge_bits(image_rgb: np.ndarray) -> np.ndarray:
+    """Like :func:`canny_edges` but ``(H, W)`` uint8 in {0, 1}: a quarter of the bytes, for
+    passing edge images between processes before they become float proxy channels."""
     if image_rgb.dtype != np.uint8 or image_rgb.ndim != 3 or image_rgb.shape[2] != 3:
         raise ValueError(
             f"canny_edges needs an (H, W, 3) uint8 RGB image, got shape {image_rgb.shape} "
@@ -31,4 +37,4 @@ def canny_edges(image_rgb: np.ndarray) -> np.ndarray:
         )
     grey = cv2.cvtColor(image_rgb, cv2.COLOR_RGB2GRAY)
     edges = cv2.Canny(grey, CANNY_LOW_THRESHOLD, CANNY_HIGH_THRESHOLD)
-    return (edges > 0).astype(np.float32)
+    return (edges > 0).view(np.uint8)

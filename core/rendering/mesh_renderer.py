@@ -53,7 +53,8 @@ class RenderOutput:
         """
         face_parts = face_parts.to(self.face_index.device)
         table = torch.cat((face_parts.new_full((1,), -1), face_parts))
-        return table[self.face_index + 1]
+        lookup = (self.face_index + 1).view(-1)
+        return table.index_select(0, lookup).view(self.face_index.shape)
 
     def composite(self, background: torch.Tensor) -> torch.Tensor:
         """The body over a background.

@@ -80,17 +80,15 @@ def half_image_occlusion(
     """
     chosen = _uniform(count, generator, device) < config.half_image_occlusion_probability
     side = torch.randint(0, 4, (count,), generator=generator).to(device)
-    index = torch.arange(size, device=device)
-    rows = index.view(1, -1, 1).expand(count, size, size)
-    cols = index.view(1, 1, -1).expand(count, size, size)
-    half = size // 2
-    side = side.view(-1, 1, 1)
-    mask = torch.where(
-        side == 0,
-        rows < half,
-        torch.where(side == 1, rows >= half, torch.where(side == 2, cols < half, cols >= half)),
-    )
-    return mask & chosen.view(-1, 1, 1)
+    first_half = torch.arange(size, device=device) < size // 2  # (S,)
+    # Per image a row mask and a column mask; the blanked region is their outer product.
+    by_rows = side < 2  # sides 0/1: top/bottom rows; sides 2/3: left/right columns
+    keep_first = (side % 2 == 0)[:, None]
+    half_mask = torch.where(keep_first, first_half, ~first_half)  # (B, S)
+    everything = torch.ones_like(half_mask)
+    rows = torch.where(by_rows[:, None], half_mask, everything) & chosen[:, None]
+    cols = torch.where(by_rows[:, None], everything, half_mask)
+    return rows[:, :, None] & cols[:, None, :]
 
 
 def occlusion_boxes(

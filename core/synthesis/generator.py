@@ -42,7 +42,7 @@ from hkpd.camera_conventions import (
     perspective_project,
 )
 from hkpd.poses import PoseSource
-from hkpd.proxy import CROP_MARGIN, build_proxy_batch, square_box_around_keypoints
+from hkpd.proxy import CROP_MARGIN, edge_bits_batch, square_box_around_keypoints
 from hkpd.rendering import (
     BackgroundSource,
     ClothingTextureSampler,
@@ -59,7 +59,7 @@ from hkpd.synthesis.augmentations import (
     remove_joints,
     swap_left_right,
 )
-from hkpd.synthesis.batch import TrainingBatch
+from hkpd.synthesis.batch import PackedBatch, TrainingBatch
 from hkpd.synthesis.visibility import keypoint_visibility
 
 
@@ -135,6 +135,18 @@ class SyntheticDataGenerator:
 
     def generate(self, count: int, seed: int) -> RenderedBatch:
         """One batch of ``count`` examples, fully determined by ``seed``."""
+        packed, images, part_map = self._make(count, seed)
+        return RenderedBatch(
+            packed.unpack(), images, part_map, packed.input_keypoints, packed.input_present
+        )
+
+    def generate_packed(self, count: int, seed: int) -> PackedBatch:
+        """The batch :meth:`generate` makes for ``seed``, with its heatmaps not yet drawn
+        (``generate_packed(n, s).unpack()`` equals ``generate(n, s).batch``)."""
+        return self._make(count, seed)[0]
+
+    def _make(self, count: int, seed: int) -> tuple[PackedBatch, np.ndarray, torch.Tensor]:
+        """The packed batch, its ``(B, S, S, 3)`` uint8 images and ``(B, S, S)`` part map."""
         generator = torch.Generator().manual_seed(seed)
         config, device, size = self.config, self.device, self.config.image_size
         augment = config.augmentation
@@ -189,8 +201,12 @@ class SyntheticDataGenerator:
         box, box_colour = occlusion_boxes(count, size, augment, generator, device)
         half = half_image_occlusion(count, size, augment, generator, device)
         image = torch.where((rendered.mask & ~erased)[:, None], rendered.rgb, background)
-        image = torch.where(box[:, None], box_colour[:, :, None, None], image)
-        image = torch.where(half[:, None], torch.zeros((), device=device), image)
+        # Boxes and half-image blanking touch few images: paint only those.
+        for index in box.flatten(1).any(1).nonzero().flatten().tolist():
+            region = box[index]
+            image[index] = torch.where(region, box_colour[index, :, None, None], image[index])
+        for index in half.flatten(1).any(1).nonzero().flatten().tolist():
+            image[index].masked_fill_(half[index], 0.0)
         occluded = erased | box | half
 
         visible = keypoint_visibility(
@@ -203,11 +219,12 @@ class SyntheticDataGenerator:
         input_present = swapped_points[..., 2] > 0.5
         input_keypoints = jitter_joints(swapped_points[..., :2], size, augment, generator)
 
-        pixels = (image.clamp(0, 1) * 255 + 0.5).to(torch.uint8)
+        pixels = image.mul_(255.0).add_(0.5).clamp_(0.0, 255.0).to(torch.uint8)
         images = pixels.permute(0, 2, 3, 1).contiguous().cpu().numpy()  # contiguous rows for cv2
-        proxy = build_proxy_batch(images, input_keypoints, input_present, device)
-        batch = TrainingBatch(
-            proxy=proxy,
+        packed = PackedBatch(
+            edge_bits=edge_bits_batch(images).to(device),
+            input_keypoints=input_keypoints,
+            input_present=input_present,
             body_pose=body_pose,
             global_orient=global_orient,
             betas=betas,
@@ -217,7 +234,7 @@ class SyntheticDataGenerator:
             translation=translation,
             focal_px=focal,
         )
-        return RenderedBatch(batch, images, part_map, input_keypoints, input_present)
+        return packed, images, part_map
 
 
 class SyntheticBatches:

@@ -39,7 +39,10 @@ def main(argv: list[str] | None = None) -> int:
             if (Path(out) / "config.json").is_file():
                 arguments.config = Path(out) / "config.json"
         config = config_from_arguments(arguments)
+        from hkpd.cpu_allocator import keep_freed_memory
         from hkpd.training.loop import train
+
+        keep_freed_memory()  # a long CPU job: reuse big blocks instead of re-faulting them
 
         result = train(config, resume=arguments.resume, show_progress=not arguments.quiet)
     except (FileNotFoundError, ValueError, FloatingPointError) as error:
