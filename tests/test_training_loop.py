@@ -101,3 +101,18 @@ def test_init_weights_start_a_new_run_from_given_weights(run, tmp_path) -> None:
     wrong = TrainConfig(**{**vars(fresh), "out": tmp_path / "x", "backbone_base_width": 8})
     with pytest.raises(ValueError, match="architecture"):
         train(wrong, show_progress=False)
+
+
+def test_worker_processes_feed_the_same_training(tmp_path) -> None:
+    """data_workers > 0 (packed batches from worker processes) trains on the same stream."""
+    settings = {**TINY, "steps": 3, "log_every": 1}
+    in_thread = train(TrainConfig(out=tmp_path / "thread", **settings), show_progress=False)
+    in_workers = train(
+        TrainConfig(out=tmp_path / "workers", data_workers=2, **settings), show_progress=False
+    )
+    assert in_workers.steps == in_thread.steps == 3
+    losses = [
+        [float(row["total"]) for row in rows(tmp_path / name / "train.csv")]
+        for name in ("thread", "workers")
+    ]
+    assert losses[0] == pytest.approx(losses[1], rel=1e-4)
