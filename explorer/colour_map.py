@@ -1,7 +1,10 @@
-"""Colours for per-vertex uncertainty, and the colour-bar legend that explains them.
+"""Colours for per-vertex uncertainty in the explorer, and the colour-bar legend.
 
-The scale is FIXED (0 .. ``max_cm``) rather than stretched to each prediction, so that hiding a
-limb visibly turns it warmer instead of silently rescaling everything.
+The colours are the library's one uncertainty ramp (:mod:`hkpd.prediction.uncertainty_colours`,
+viridis-like, the same as ``hkpd-predict``'s pictures), so a screenshot and an exported render
+of the same prediction agree. The scale is FIXED (0 .. ``max_cm``) rather than stretched to each
+prediction, so that hiding a limb visibly turns it warmer instead of silently rescaling
+everything; the explorer's slider moves the top.
 """
 
 from __future__ import annotations
@@ -9,20 +12,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-_STOPS = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
-_COLOURS = np.array(
-    [
-        [38, 70, 170],  # deep blue: certain
-        [40, 160, 190],  # teal
-        [245, 225, 110],  # sand
-        [240, 125, 45],  # orange
-        [175, 25, 40],  # dark red: very uncertain
-    ],
-    dtype=np.float64,
-)
+from hkpd.prediction.uncertainty_colours import UNCERTAINTY_MAX_M, UncertaintyColourScale
 
-DEFAULT_MAX_CM = 15.0
-"""Default top of the uncertainty colour scale, centimetres."""
+DEFAULT_MAX_CM = UNCERTAINTY_MAX_M * 100.0
+"""Default top of the uncertainty colour scale, centimetres (``hkpd-predict``'s too)."""
 
 
 def uncertainty_colours(uncertainty_m: np.ndarray, max_cm: float = DEFAULT_MAX_CM) -> np.ndarray:
@@ -30,16 +23,14 @@ def uncertainty_colours(uncertainty_m: np.ndarray, max_cm: float = DEFAULT_MAX_C
 
     Args:
         uncertainty_m: ``(V,)`` per-vertex uncertainty in metres (>= 0).
-        max_cm: value (centimetres) that gets the hottest colour; larger values saturate.
+        max_cm: value (centimetres) that gets the top colour; larger values saturate.
 
     Returns:
         ``(V, 3)`` uint8 RGB.
     """
     if max_cm <= 0:
         raise ValueError(f"max_cm must be positive, got {max_cm}")
-    t = np.clip(np.asarray(uncertainty_m, dtype=np.float64) * 100.0 / max_cm, 0.0, 1.0)
-    channels = [np.interp(t, _STOPS, _COLOURS[:, c]) for c in range(3)]
-    return np.round(np.stack(channels, axis=-1)).astype(np.uint8)
+    return UncertaintyColourScale(maximum_m=max_cm / 100.0).colours_uint8(uncertainty_m)
 
 
 def legend_image(max_cm: float = DEFAULT_MAX_CM, width: int = 320, height: int = 64) -> np.ndarray:

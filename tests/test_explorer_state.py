@@ -24,6 +24,7 @@ from hkpd.explorer.state import MAX_OCCLUDERS, ExplorerState, clamp_box
 from hkpd.explorer.upload import MAX_UPLOAD_BYTES, UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
+from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
 
 
 def make_state() -> ExplorerState:
@@ -213,12 +214,17 @@ def test_half_turn_quaternion_matches_the_opencv_axes():
 
 
 # ---------------------------------------------------------------------------- colours
-def test_uncertainty_colours_run_from_blue_to_red_and_saturate():
-    colours = uncertainty_colours(np.array([0.0, 0.075, 0.15, 0.5]), max_cm=15.0)
+def test_uncertainty_colours_match_hkpd_predict_and_saturate():
+    values = np.array([0.0, 0.075, 0.15, 0.5])
+    colours = uncertainty_colours(values, max_cm=15.0)
     assert colours.dtype == np.uint8 and colours.shape == (4, 3)
-    assert colours[0, 2] > colours[0, 0]  # certain: blue
-    assert colours[2, 0] > colours[2, 2]  # at the top of the scale: red
+    assert colours[0, 2] > colours[0, 1]  # certain: dark purple-blue
+    assert colours[2, 0] > colours[2, 2] and colours[2, 1] > colours[2, 2]  # top: yellow
     np.testing.assert_array_equal(colours[2], colours[3])
+    # The same ramp as hkpd-predict's renders, at the same default scale.
+    np.testing.assert_array_equal(
+        uncertainty_colours(values), UncertaintyColourScale().colours_uint8(values)
+    )
     legend = legend_image(15.0)
     assert legend.shape == (64, 320, 3) and legend.std() > 20
 
