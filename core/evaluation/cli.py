@@ -49,6 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
     parser.add_argument("--device", default="auto")
     parser.add_argument("--out", type=Path, help="also write the markdown report here")
+    parser.add_argument(
+        "--figure",
+        type=Path,
+        help="also draw the synthetic 2D errors (mode vs samples per checkpoint) into this PNG",
+    )
     return parser
 
 
@@ -97,6 +102,8 @@ def main(argv: list[str] | None = None) -> int:
                 raise FileNotFoundError(f"checkpoint {checkpoint} does not exist")
         if arguments.poses is not None and not arguments.poses.is_file():
             raise FileNotFoundError(f"pose bank {arguments.poses} does not exist")
+        if arguments.figure is not None and arguments.no_synthetic:
+            raise ValueError("--figure draws the synthetic results: drop --no-synthetic")
         if arguments.coco is not None and not arguments.coco.is_dir():
             raise FileNotFoundError(f"COCO folder {arguments.coco} does not exist")
     except (FileNotFoundError, ValueError) as error:
@@ -128,6 +135,10 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             {key for row in rows.values() for key in row} - {"image_size"}, key=_metric_order
         )
         report.append("All synthetic metrics:\n\n" + markdown_table(rows, every))
+        if arguments.figure is not None:
+            from hkpd.evaluation.figures import plot_2d_errors
+
+            plot_2d_errors(rows, arguments.figure)
     if arguments.coco is not None:
         from hkpd.evaluation.real_photos import evaluate_photos, load_coco_people
         from hkpd.prediction.predictor import Predictor
