@@ -10,14 +10,13 @@ from hkpd.proxy import assemble_proxy
 
 
 @dataclass
-class TrainingBatch:
-    """One batch of synthetic training examples, all tensors on the same device.
+class BatchTargets:
+    """The ground truth of a batch of synthetic examples, shared by :class:`TrainingBatch` and
+    :class:`PackedBatch`; all tensors on the same device.
 
     Coordinates follow :mod:`hkpd.camera_conventions` (OpenCV camera frame, 256-pixel crops).
 
     Attributes:
-        proxy: ``(B, 18, 256, 256)`` float32: channel 0 the edge image in {0, 1}, channels 1-17
-            the COCO-17 joint heatmaps (zero where a joint was dropped).
         body_pose: ``(B, 23, 3, 3)`` ground-truth relative rotations of the 23 body joints.
         global_orient: ``(B, 3, 3)`` body-to-camera rotation.
         betas: ``(B, 10)`` ground-truth shape coefficients.
@@ -30,7 +29,6 @@ class TrainingBatch:
         focal_px: ``(B,)`` perspective focal length in pixels.
     """
 
-    proxy: torch.Tensor
     body_pose: torch.Tensor
     global_orient: torch.Tensor
     betas: torch.Tensor
@@ -40,17 +38,34 @@ class TrainingBatch:
     translation: torch.Tensor
     focal_px: torch.Tensor
 
+    def targets_on(self, device: torch.device | str) -> dict[str, torch.Tensor]:
+        """The ground-truth fields by name, moved to ``device``."""
+        return {f.name: getattr(self, f.name).to(device) for f in fields(BatchTargets)}
+
+
+@dataclass
+class TrainingBatch(BatchTargets):
+    """One batch of synthetic training examples: the network input plus :class:`BatchTargets`.
+
+    Attributes:
+        proxy: ``(B, 18, 256, 256)`` float32: channel 0 the edge image in {0, 1}, channels 1-17
+            the COCO-17 joint heatmaps (zero where a joint was dropped).
+        The others: as in :class:`BatchTargets`.
+    """
+
+    proxy: torch.Tensor
+
     @property
     def batch_size(self) -> int:
         return int(self.proxy.shape[0])
 
     def to(self, device: torch.device | str) -> TrainingBatch:
         """A copy with every tensor on ``device``."""
-        return TrainingBatch(**{f.name: getattr(self, f.name).to(device) for f in fields(self)})
+        return TrainingBatch(proxy=self.proxy.to(device), **self.targets_on(device))
 
 
 @dataclass
-class PackedBatch:
+class PackedBatch(BatchTargets):
     """A :class:`TrainingBatch` before its heatmaps are drawn: what crosses process boundaries.
 
     The float proxy of a 256-px example is 4.7 MB, almost all of it Gaussian heatmaps that are
@@ -62,28 +77,15 @@ class PackedBatch:
         edge_bits: ``(B, S, S)`` uint8 Canny edges in {0, 1}.
         input_keypoints: ``(B, 17, 2)`` the keypoints the heatmaps are drawn at (augmented).
         input_present: ``(B, 17)`` bool, which of them are drawn.
-        The others: as in :class:`TrainingBatch`.
+        The others: as in :class:`BatchTargets`.
     """
 
     edge_bits: torch.Tensor
     input_keypoints: torch.Tensor
     input_present: torch.Tensor
-    body_pose: torch.Tensor
-    global_orient: torch.Tensor
-    betas: torch.Tensor
-    keypoints2d: torch.Tensor
-    visible: torch.Tensor
-    joints3d: torch.Tensor
-    translation: torch.Tensor
-    focal_px: torch.Tensor
 
     def unpack(self, device: torch.device | str | None = None) -> TrainingBatch:
         """The training batch, its proxy drawn on ``device`` (default: the keypoints' device)."""
         device = self.input_keypoints.device if device is None else torch.device(device)
         proxy = assemble_proxy(self.edge_bits, self.input_keypoints, self.input_present, device)
-        targets = {
-            f.name: getattr(self, f.name).to(device)
-            for f in fields(TrainingBatch)
-            if f.name != "proxy"
-        }
-        return TrainingBatch(proxy=proxy, **targets)
+        return TrainingBatch(proxy=proxy, **self.targets_on(device))
