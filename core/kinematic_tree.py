@@ -48,6 +48,19 @@ BODY_JOINT_NAMES: tuple[str, ...] = SMPL_JOINT_NAMES[1:]
 BODY_PARENTS: tuple[int, ...] = tuple(p - 1 for p in SMPL_PARENTS[1:])
 """Parent of each body joint, indexed among the 23 body joints; -1 means "the root (pelvis)"."""
 
+LIMB_SEGMENT_PARTS: dict[str, tuple[str, ...]] = {
+    f"{side}_{segment}": tuple(f"{side}_{part}" for part in parts)
+    for side in ("left", "right")
+    for segment, parts in (
+        ("upper_arm", ("shoulder",)),
+        ("forearm", ("elbow", "wrist", "hand")),
+        ("thigh", ("hip",)),
+        ("lower_leg", ("knee", "ankle", "foot")),
+    )
+}
+"""The limb segments, as SMPL part groups (a part is named after the joint it starts at:
+``left_elbow`` is the left forearm, ``left_hip`` the left thigh)."""
+
 
 def validate_parents(parents: Sequence[int]) -> tuple[int, ...]:
     """Check that ``parents`` describes a kinematic forest in topological order.

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import torch
 
+from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS, SMPL_JOINT_NAMES
 from hkpd.synthesis.augmentations import (
     AugmentationConfig,
     body_part_occlusion,
     half_image_occlusion,
     jitter_joints,
+    limb_occlusion_boxes,
     occlusion_boxes,
     remove_joints,
     swap_left_right,
@@ -112,3 +114,53 @@ def test_visibility_logic() -> None:
     visible = keypoint_visibility(keypoints, keypoint_depth, depth, parts, occluded)
     assert visible[0].tolist()[:6] == [True, False, False, False, True, True]
     assert bool(visible[0, 6:].all())  # over background at (10, 10)
+
+
+def test_limb_box_off_draws_nothing_and_covers_nothing() -> None:
+    part_map = torch.randint(-1, 24, (8, 32, 32))
+    rng = generator(3)
+    mask, _ = limb_occlusion_boxes(part_map, CONFIG, rng)
+    assert not mask.any()
+    assert torch.equal(rng.get_state(), generator(3).get_state())
+
+
+def limb_pixels(part_map: torch.Tensor, limb: str) -> torch.Tensor:
+    parts = torch.tensor([SMPL_JOINT_NAMES.index(part) for part in LIMB_SEGMENT_PARTS[limb]])
+    return torch.isin(part_map, parts)
+
+
+def test_limb_box_covers_exactly_one_whole_limb_segment() -> None:
+    # Each image: a rectangle of every limb part at a distinct place, the rest background.
+    count, size = 64, 64
+    part_map = torch.full((count, size, size), -1)
+    limbs = list(LIMB_SEGMENT_PARTS)
+    spots = {}
+    for index, limb in enumerate(limbs):
+        row, col = 4 + 7 * index, 4 + 6 * index
+        for offset, part in enumerate(LIMB_SEGMENT_PARTS[limb]):
+            part_map[:, row : row + 3, col + 2 * offset : col + 2 * offset + 2] = (
+                SMPL_JOINT_NAMES.index(part)
+            )
+        spots[limb] = (row, col)
+    config = AugmentationConfig(limb_occlusion_probability=1.0, limb_box_margin_px=0.0)
+    mask, colour = limb_occlusion_boxes(part_map, config, generator(4))
+    assert colour.shape == (count, 3) and (colour.sum(1) == 0).any()  # some boxes black
+    covered_limbs = set()
+    for image in range(count):
+        share = {limb: float(mask[image][limb_pixels(part_map[image], limb)].float().mean())
+                 for limb in limbs}  # fmt: skip
+        (limb,) = [limb for limb, value in share.items() if value == 1.0]
+        assert sum(share.values()) == 1.0  # no pixel of any other limb is covered
+        covered_limbs.add(limb)
+        rows, cols = mask[image].any(1).nonzero(), mask[image].any(0).nonzero()
+        box = mask[image][rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
+        assert box.all() and int(mask[image].sum()) == box.numel()  # one solid rectangle
+    assert covered_limbs == set(limbs)
+
+
+def test_limb_box_rate() -> None:
+    part_map = torch.zeros(N, 8, 8, dtype=torch.long)
+    part_map[:] = torch.arange(24).repeat(3)[:64].view(8, 8)
+    config = AugmentationConfig(limb_occlusion_probability=0.3)
+    mask, _ = limb_occlusion_boxes(part_map, config, generator(5))
+    assert abs(float(mask.flatten(1).any(1).float().mean()) - 0.3) < tolerance(0.3)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -127,3 +129,30 @@ def test_packed_batch_unpacks_to_the_generated_batch(generator) -> None:
     direct = generator.generate(3, seed=11).batch
     for name in ("proxy", "body_pose", "betas", "keypoints2d", "visible", "joints3d"):
         torch.testing.assert_close(getattr(unpacked, name), getattr(direct, name))
+
+
+def test_limb_boxes_hide_their_keypoints(generator) -> None:
+    """With a limb box on every image, keypoints inside the painted box are never visible, and
+    the box's limb has fewer pixels left in the picture than in the clean render."""
+    limb_only = replace(
+        AugmentationConfig.disabled(), limb_occlusion_probability=1.0, limb_box_margin_px=6.0
+    )
+    boxed = SyntheticDataGenerator(
+        ProceduralPosePrior(),
+        SyntheticDataConfig(image_size=SIZE, augmentation=limb_only),
+        body=generator.body,
+    )
+    rendered = boxed.generate(8, seed=5)
+    clean = SyntheticDataGenerator(
+        ProceduralPosePrior(),
+        SyntheticDataConfig(image_size=SIZE, augmentation=AugmentationConfig.disabled()),
+        body=generator.body,
+    ).generate(8, seed=5)
+    changed = torch.from_numpy((rendered.images != clean.images).any(-1))  # the painted boxes
+    assert changed.flatten(1).any(1).float().mean() >= 0.75
+    pixel = rendered.batch.keypoints2d.round().long().clamp(0, SIZE - 1)
+    rows, cols = pixel[..., 1], pixel[..., 0]
+    under_box = changed[torch.arange(8)[:, None], rows, cols]
+    assert under_box.any()
+    assert not (rendered.batch.visible & under_box).any()
+    assert (clean.batch.visible & under_box).any()  # they were visible before the box

@@ -98,6 +98,11 @@ def test_init_weights_start_a_new_run_from_given_weights(run, tmp_path) -> None:
     pairs = zip(before.parameters(), after.parameters(), strict=True)
     drift = max(float((a - b).abs().max().detach()) for a, b in pairs)
     assert 0 < float(drift) < 0.05
+    with_gain = {"concentration_gain": True, "limb_occlusion_probability": 0.5}
+    gained = TrainConfig(**{**vars(fresh), "out": tmp_path / "gain", "steps": 2, **with_gain})
+    network, _ = load_network(train(gained, show_progress=False).checkpoint)
+    assert network.config.concentration_gain
+    assert any("log_gain" in name for name, _ in network.named_parameters())
     wrong = TrainConfig(**{**vars(fresh), "out": tmp_path / "x", "backbone_base_width": 8})
     with pytest.raises(ValueError, match="architecture"):
         train(wrong, show_progress=False)

@@ -18,20 +18,17 @@ import numpy as np
 import torch
 
 from hkpd.body import BodyModel
-from hkpd.kinematic_tree import SMPL_JOINT_NAMES
+from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS, SMPL_JOINT_NAMES
 from hkpd.prediction.occluders import apply_occluders, points_under_boxes
 from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.generator import SyntheticDataGenerator, batch_seed
 from hkpd.uncertainty import vertex_uncertainty
 
-LIMB_PARTS: dict[str, tuple[str, ...]] = {
-    "left_forearm": ("left_elbow", "left_wrist", "left_hand"),
-    "right_forearm": ("right_elbow", "right_wrist", "right_hand"),
-    "left_lower_leg": ("left_knee", "left_ankle", "left_foot"),
-    "right_lower_leg": ("right_knee", "right_ankle", "right_foot"),
-}
-"""The limbs that get covered, as SMPL part groups (a part is named after the joint it starts
-at: ``left_elbow`` is the left forearm)."""
+OCCLUDED_LIMBS = ("left_forearm", "right_forearm", "left_lower_leg", "right_lower_leg")
+"""The limbs that get covered (keys of :data:`hkpd.kinematic_tree.LIMB_SEGMENT_PARTS`)."""
+
+LIMB_PARTS: dict[str, tuple[str, ...]] = {limb: LIMB_SEGMENT_PARTS[limb] for limb in OCCLUDED_LIMBS}
+"""The covered limbs as SMPL part groups."""
 
 MIN_LIMB_PIXELS = 40
 BOX_MARGIN_PX_AT_256 = 6

@@ -33,6 +33,11 @@ class NetworkConfig:
             multiple of the identity (see ``docs/network.md`` for the choice).
         initial_camera_scale: weak-perspective scale ``s`` at initialisation, NDC per metre.
         initial_shape_std: shape standard deviation at initialisation.
+        concentration_gain: each joint also predicts a log-gain ``g`` from its own features and
+            its ``F`` is scaled by ``exp(g)`` (an hkpd addition to the paper's heads, see
+            ``docs/network.md``): one output moves a joint's whole concentration, so the network
+            can learn quickly to be less sure of a hidden limb. The gain layers start at zero,
+            so switching it on keeps a trained network's predictions at first.
     """
 
     backbone_base_width: int = 64
@@ -46,6 +51,7 @@ class NetworkConfig:
     initial_pose_concentration: float = 1.0
     initial_camera_scale: float = 1.0
     initial_shape_std: float = 1.0
+    concentration_gain: bool = False
 
     def __post_init__(self) -> None:
         # Tuples may arrive as lists from JSON.

@@ -29,7 +29,7 @@ from torch import nn
 from hkpd.distributions import proper_svd
 from hkpd.kinematic_tree import ancestors, depth_levels, validate_parents
 from hkpd.network.grouped_linear import GroupedLinear
-from hkpd.network.independent_head import init_output_layer
+from hkpd.network.independent_head import init_output_layer, zero_layer
 from hkpd.network.output import NetworkOutput
 from hkpd.network.output_decoding import (
     decode_globals,
@@ -62,7 +62,7 @@ def ancestor_features(F: torch.Tensor) -> torch.Tensor:
 class _LevelStreams(nn.Module):
     """The per-joint layers of one depth level (``count`` joints with ``depth`` ancestors)."""
 
-    def __init__(self, count: int, depth: int, hidden: Sequence[int]) -> None:
+    def __init__(self, count: int, depth: int, hidden: Sequence[int], gain: bool) -> None:
         super().__init__()
         self.ancestor_in = (
             GroupedLinear(count, depth * ANCESTOR_FEATURES, hidden[0], bias=False)
@@ -72,15 +72,21 @@ class _LevelStreams(nn.Module):
         self.hidden = nn.ModuleList(GroupedLinear(count, a, b) for a, b in pairwise(hidden))
         self.out = GroupedLinear(count, hidden[-1], 9)
         init_output_layer(self.out)
+        self.log_gain = GroupedLinear(count, hidden[-1], 1) if gain else None
+        if self.log_gain is not None:
+            zero_layer(self.log_gain)
 
-    def forward(self, first: torch.Tensor, ancestors_in: torch.Tensor | None) -> torch.Tensor:
-        """First-layer pre-activations ``(B, n, h0)`` and ancestor inputs to raw ``(B, n, 9)``."""
+    def forward(
+        self, first: torch.Tensor, ancestors_in: torch.Tensor | None
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """First-layer pre-activations ``(B, n, h0)`` and ancestor inputs to raw ``(B, n, 9)``
+        outputs and, with a concentration gain, ``(B, n, 1)`` log-gains (else None)."""
         if self.ancestor_in is not None and ancestors_in is not None:
             first = first + self.ancestor_in(ancestors_in)
         x = torch.relu(first)
         for layer in self.hidden:
             x = torch.relu(layer(x))
-        return self.out(x)
+        return self.out(x), (None if self.log_gain is None else self.log_gain(x))
 
 
 class HierarchicalHead(nn.Module):
@@ -94,6 +100,8 @@ class HierarchicalHead(nn.Module):
         parents: the body joints' parents (:data:`hkpd.kinematic_tree.BODY_PARENTS`).
         initial_pose_concentration, initial_shape_std, initial_camera_scale: initial values of
             the decoded outputs (see :class:`hkpd.network.NetworkConfig`).
+        concentration_gain: give each joint stream a log-gain output (see
+            :func:`hkpd.network.output_decoding.decode_pose`).
     """
 
     def __init__(
@@ -106,6 +114,7 @@ class HierarchicalHead(nn.Module):
         initial_pose_concentration: float,
         initial_shape_std: float,
         initial_camera_scale: float,
+        concentration_gain: bool = False,
     ) -> None:
         super().__init__()
         self.parents = validate_parents(parents)
@@ -127,7 +136,7 @@ class HierarchicalHead(nn.Module):
         # Rows grouped by joint in processing order, so each level is a contiguous slice.
         self.first_layer = nn.Linear(shared_inputs, self.num_joints * joint_hidden[0])
         self.level_streams = nn.ModuleList(
-            _LevelStreams(len(level), depth, joint_hidden)
+            _LevelStreams(len(level), depth, joint_hidden, concentration_gain)
             for depth, level in enumerate(self.levels)
         )
         for depth, level in enumerate(self.levels):
@@ -174,8 +183,8 @@ class HierarchicalHead(nn.Module):
                 known = torch.cat(level_features, dim=1)  # (B, joints so far, 21)
                 rows = getattr(self, f"_ancestor_rows_{depth}")
                 ancestors_in = known.index_select(1, rows).reshape(batch, count, -1)
-            raw = streams(first_all[:, start : start + count], ancestors_in)
-            F = decode_pose(raw, self.concentration)
+            raw, log_gain = streams(first_all[:, start : start + count], ancestors_in)
+            F = decode_pose(raw, self.concentration, log_gain)
             if edit is not None:
                 F = edit(level, F)
             level_F.append(F)

@@ -21,6 +21,13 @@ def init_output_layer(layer: nn.Module, bias: torch.Tensor | None = None) -> Non
             layer.bias.copy_(torch.zeros_like(layer.bias) if bias is None else bias)
 
 
+def zero_layer(layer: nn.Module) -> None:
+    """Set a layer's weights and bias to zero (a new output that starts as a no-op)."""
+    with torch.no_grad():
+        for parameter in layer.parameters():
+            parameter.zero_()
+
+
 class IndependentHead(nn.Module):
     """Two hidden FC layers, then linear outputs for all 23 joints' ``F`` and the global outputs.
 
@@ -34,6 +41,8 @@ class IndependentHead(nn.Module):
         num_joints: body joints (23).
         initial_pose_concentration, initial_shape_std, initial_camera_scale: initial values of
             the decoded outputs (see :class:`hkpd.network.NetworkConfig`).
+        concentration_gain: also predict a log-gain per joint (see
+            :func:`hkpd.network.output_decoding.decode_pose`).
     """
 
     def __init__(
@@ -45,6 +54,7 @@ class IndependentHead(nn.Module):
         initial_pose_concentration: float,
         initial_shape_std: float,
         initial_camera_scale: float,
+        concentration_gain: bool = False,
     ) -> None:
         super().__init__()
         self.num_betas = num_betas
@@ -62,11 +72,15 @@ class IndependentHead(nn.Module):
             self.globals_out, global_bias(num_betas, initial_shape_std, initial_camera_scale)
         )
         init_output_layer(self.pose_out)
+        self.log_gain_out = nn.Linear(hidden, num_joints) if concentration_gain else None
+        if self.log_gain_out is not None:
+            zero_layer(self.log_gain_out)
 
     def forward(self, features: torch.Tensor) -> NetworkOutput:
         """``(B, feature_dim)`` image features to a :class:`NetworkOutput`."""
         embedding = self.trunk(features)
         mean, std, orient, camera = decode_globals(self.globals_out(embedding), self.num_betas)
         raw_pose = self.pose_out(embedding).unflatten(-1, (self.num_joints, 9))
-        F = decode_pose(raw_pose, self.concentration)
+        log_gain = None if self.log_gain_out is None else self.log_gain_out(embedding)
+        F = decode_pose(raw_pose, self.concentration, log_gain)
         return NetworkOutput(F, mean, std, orient, camera)

@@ -37,6 +37,7 @@ class DistributionNetwork(nn.Module):
             "initial_pose_concentration": c.initial_pose_concentration,
             "initial_shape_std": c.initial_shape_std,
             "initial_camera_scale": c.initial_camera_scale,
+            "concentration_gain": c.concentration_gain,
         }
         self.head: nn.Module
         if c.pose_head == "independent":

@@ -6,7 +6,9 @@ Every head ends in a linear layer whose raw outputs are decoded here:
 - global rotation: a 6D vector (two 3-vectors, Zhou et al. 2019) orthonormalised by Gram-Schmidt
   into a rotation matrix;
 - camera ``[s, tx, ty]``: ``s = softplus(raw_s)`` (positive), ``t`` as is;
-- pose: ``F = raw + c · I`` per joint, with ``c`` the initial concentration.
+- pose: ``F = raw + c · I`` per joint, with ``c`` the initial concentration; with a
+  concentration gain (``NetworkConfig.concentration_gain``) each joint's ``F`` is further scaled
+  by ``exp(g)``, ``g`` an extra per-joint output clamped to ``±MAX_LOG_GAIN``.
 
 Decoding always happens in at least float32: under mixed precision (``torch.autocast``) the final
 layers' raw outputs are half or bfloat16, but distribution parameters go through SVDs and
@@ -84,8 +86,30 @@ def decode_globals(
     return mean, std, orient, camera
 
 
-def decode_pose(raw: torch.Tensor, concentration: float) -> torch.Tensor:
-    """``(..., 9)`` raw outputs to ``(..., 3, 3)`` matrix-Fisher parameters ``raw + c · I``."""
+MAX_LOG_GAIN = 6.0
+"""Bound of the log concentration gain: ``exp(±6)`` scales ``F`` by at most ~400 either way."""
+
+
+def decode_pose(
+    raw: torch.Tensor, concentration: float, log_gain: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Raw outputs to matrix-Fisher parameters ``exp(g) · (raw + c · I)``.
+
+    Args:
+        raw: ``(..., 9)`` raw outputs of one or more joints.
+        concentration: ``c``, the initial concentration.
+        log_gain: optional ``(...)`` or ``(..., 1)`` log-gains ``g`` (clamped to
+            ``±MAX_LOG_GAIN``). Scaling ``F`` keeps the mode and principal axes and multiplies
+            every singular value, so one output moves a joint's whole concentration; zero
+            (as initialised) leaves ``F`` unchanged.
+
+    Returns:
+        ``(..., 3, 3)`` in at least float32.
+    """
     raw = full_precision(raw)
     eye = torch.eye(3, dtype=raw.dtype, device=raw.device)
-    return raw.unflatten(-1, (3, 3)) + concentration * eye
+    F = raw.unflatten(-1, (3, 3)) + concentration * eye
+    if log_gain is None:
+        return F
+    gain = full_precision(log_gain).reshape(F.shape[:-2]).clamp(-MAX_LOG_GAIN, MAX_LOG_GAIN)
+    return F * gain.exp()[..., None, None]

@@ -13,6 +13,10 @@ targets.
 | 2D joint noise | uniform in ±8 px |
 | occlusion box | p = 0.5, 48 px |
 | bounding-box scale | 0.8 - 1.2 |
+| limb box (hkpd addition, off by default) | p = ``limb_occlusion_probability``, margin 6 px |
+
+The limb box is not in the paper: it covers one limb segment's whole extent, the way a user
+hides a limb with the explorer's occluders, so that the network sees hidden limbs often.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from dataclasses import dataclass
 import torch
 
 from hkpd.coco_keypoints import COCO17_LEFT_RIGHT_PAIRS
+from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS, SMPL_JOINT_NAMES
 
 
 @dataclass(frozen=True)
@@ -38,6 +43,8 @@ class AugmentationConfig:
     occlusion_box_probability: float = 0.5
     occlusion_box_px: float = 48.0
     bbox_scale_range: tuple[float, float] = (0.8, 1.2)
+    limb_occlusion_probability: float = 0.0
+    limb_box_margin_px: float = 6.0
 
     @staticmethod
     def disabled() -> AugmentationConfig:
@@ -110,6 +117,56 @@ def occlusion_boxes(
     mask = rows_in.unsqueeze(-1) & cols_in.unsqueeze(-2) & chosen.view(-1, 1, 1)
     colour = torch.rand(count, 3, generator=generator).to(device)
     return mask, colour
+
+
+def _limb_part_table() -> torch.Tensor:
+    """``(limbs, 25)`` bool: ``table[l, p + 1]`` says part p belongs to limb segment l."""
+    table = torch.zeros(len(LIMB_SEGMENT_PARTS), 25, dtype=torch.bool)
+    for limb, parts in enumerate(LIMB_SEGMENT_PARTS.values()):
+        table[limb, [SMPL_JOINT_NAMES.index(part) + 1 for part in parts]] = True
+    return table
+
+
+def _span(mask: torch.Tensor, margin: int) -> torch.Tensor:
+    """``(B, S)`` bool to the run from its first to its last True, widened by ``margin``
+    (all False where ``mask`` is)."""
+    index = torch.arange(mask.shape[1], device=mask.device)
+    size = mask.shape[1]
+    first = torch.where(mask, index, size).amin(1, keepdim=True)
+    last = torch.where(mask, index, -1).amax(1, keepdim=True)
+    return (index >= first - margin) & (index <= last + margin) & mask.any(1, keepdim=True)
+
+
+def limb_occlusion_boxes(
+    part_map: torch.Tensor, config: AugmentationConfig, generator: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Cover one random limb segment (:data:`hkpd.kinematic_tree.LIMB_SEGMENT_PARTS`) of a
+    fraction of images with its bounding box plus ``limb_box_margin_px``.
+
+    Half of the boxes are black (like the explorer's occluders), half a random solid colour.
+    With ``limb_occlusion_probability == 0`` nothing is drawn from ``generator``, so data streams
+    without this augmentation are unchanged.
+
+    Args:
+        part_map: ``(B, S, S)`` long body part per pixel, -1 on background.
+
+    Returns:
+        ``mask (B, S, S)`` bool (empty where no box, or where the limb is out of view) and
+        ``colour (B, 3)`` in [0, 1].
+    """
+    count, size, device = part_map.shape[0], part_map.shape[-1], part_map.device
+    if config.limb_occlusion_probability <= 0:
+        empty = torch.zeros(part_map.shape, dtype=torch.bool, device=device)
+        return empty, torch.zeros(count, 3, device=device)
+    chosen = _uniform(count, generator, device) < config.limb_occlusion_probability
+    limb = torch.randint(0, len(LIMB_SEGMENT_PARTS), (count,), generator=generator)
+    colour = torch.rand(count, 3, generator=generator)
+    colour = (colour * (torch.rand(count, 1, generator=generator) < 0.5)).to(device)
+    parts = _limb_part_table()[limb].to(device) & chosen[:, None]  # (B, 25)
+    on_limb = parts.gather(1, (part_map + 1).reshape(count, -1)).reshape(part_map.shape)
+    margin = max(1, round(config.limb_box_margin_px * size / 256))
+    rows, cols = _span(on_limb.any(2), margin), _span(on_limb.any(1), margin)
+    return rows[:, :, None] & cols[:, None, :], colour
 
 
 def swap_left_right(

@@ -55,6 +55,7 @@ from hkpd.synthesis.augmentations import (
     body_part_occlusion,
     half_image_occlusion,
     jitter_joints,
+    limb_occlusion_boxes,
     occlusion_boxes,
     remove_joints,
     swap_left_right,
@@ -200,14 +201,16 @@ class SyntheticDataGenerator:
         erased = body_part_occlusion(part_map, augment, generator)
         box, box_colour = occlusion_boxes(count, size, augment, generator, device)
         half = half_image_occlusion(count, size, augment, generator, device)
+        limb_box, limb_colour = limb_occlusion_boxes(part_map, augment, generator)
         image = torch.where((rendered.mask & ~erased)[:, None], rendered.rgb, background)
         # Boxes and half-image blanking touch few images: paint only those.
-        for index in box.flatten(1).any(1).nonzero().flatten().tolist():
-            region = box[index]
-            image[index] = torch.where(region, box_colour[index, :, None, None], image[index])
+        for mask, colour in ((box, box_colour), (limb_box, limb_colour)):
+            for index in mask.flatten(1).any(1).nonzero().flatten().tolist():
+                region = mask[index]
+                image[index] = torch.where(region, colour[index, :, None, None], image[index])
         for index in half.flatten(1).any(1).nonzero().flatten().tolist():
             image[index].masked_fill_(half[index], 0.0)
-        occluded = erased | box | half
+        occluded = erased | box | half | limb_box
 
         visible = keypoint_visibility(
             keypoints2d, keypoints3d[..., 2], rendered.depth, part_map, occluded

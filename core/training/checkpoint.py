@@ -110,3 +110,32 @@ def load_network(path: Path | str, device: str | torch.device = "cpu") -> tuple[
     }
     network.load_state_dict(state)
     return network.to(device).eval(), payload
+
+
+def load_initial_weights(network: Any, path: Path | str, device: str | torch.device) -> None:
+    """Copy a trained network's weights into ``network`` (``hkpd-train --init-weights``).
+
+    The architectures must match, except that ``network`` may add the concentration gain the
+    trained one lacks: its gain layers then keep their zero initialisation, so the network
+    starts out predicting exactly what the trained one did.
+
+    Raises:
+        ValueError: if the architectures differ otherwise.
+    """
+    from hkpd.network.config import NetworkConfig
+
+    initial, payload = load_network(path, device)
+    wanted = network.config.to_dict()
+    found = NetworkConfig.from_dict(payload["network_config"]).to_dict()
+    adds_gain = wanted["concentration_gain"] and not found["concentration_gain"]
+    if adds_gain:
+        found["concentration_gain"] = True
+    if found != wanted:
+        raise ValueError(
+            f"--init-weights {path} has architecture {payload['network_config']}, but this run "
+            f"builds {wanted}: match --image-size, --backbone-base-width and --pose-head"
+        )
+    missing, unexpected = network.load_state_dict(initial.state_dict(), strict=False)
+    not_gain = [key for key in missing if "log_gain" not in key]
+    if unexpected or not_gain or (missing and not adds_gain):
+        raise ValueError(f"--init-weights {path}: missing {missing}, unexpected {unexpected}")

@@ -45,6 +45,12 @@ class TrainConfig:
         init_weights: start from these network weights (e.g. the shipped fp16 model) instead of
             a fresh initialisation; the architecture must match. Unlike ``--resume`` this starts a
             new run (step 0, new optimiser).
+        concentration_gain: give the network a per-joint concentration gain
+            (:attr:`hkpd.network.NetworkConfig.concentration_gain`); with ``init_weights`` from a
+            network without one, the gain starts at zero.
+        limb_occlusion_probability: fraction of training images in which one limb segment is
+            covered by a box (:func:`hkpd.synthesis.augmentations.limb_occlusion_boxes`), as the
+            explorer's occluders do; 0 keeps the paper's augmentations only.
         data_workers: CPU only: make batches in this many single-threaded worker processes
             (:class:`hkpd.synthesis.parallel.ParallelBatches`); 0 makes them in a background
             thread of the training process.
@@ -72,6 +78,8 @@ class TrainConfig:
     tensorboard: bool = False
     data_workers: int = 0
     init_weights: Path | None = None
+    concentration_gain: bool = False
+    limb_occlusion_probability: float = 0.0
 
     def to_dict(self) -> dict:
         """Plain JSON-able values (paths as strings)."""

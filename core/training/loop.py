@@ -26,6 +26,7 @@ from hkpd.devices import resolve_device
 from hkpd.network import DistributionNetwork
 from hkpd.network.config import NetworkConfig
 from hkpd.poses import pose_source
+from hkpd.synthesis.augmentations import AugmentationConfig
 from hkpd.synthesis.generator import (
     SyntheticBatches,
     SyntheticDataConfig,
@@ -33,7 +34,7 @@ from hkpd.synthesis.generator import (
     fixed_test_set,
 )
 from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
-from hkpd.training.checkpoint import load_network, read_checkpoint, save_checkpoint
+from hkpd.training.checkpoint import load_initial_weights, read_checkpoint, save_checkpoint
 from hkpd.training.config import TrainConfig
 from hkpd.training.curves import plot_training_curves
 from hkpd.training.losses import compute_losses
@@ -152,7 +153,8 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
 
     torch.manual_seed(config.seed)
     body = BodyModel().to(device)
-    data_config = SyntheticDataConfig(image_size=config.image_size)
+    augmentation = AugmentationConfig(limb_occlusion_probability=config.limb_occlusion_probability)
+    data_config = SyntheticDataConfig(image_size=config.image_size, augmentation=augmentation)
     generator = SyntheticDataGenerator(
         train_poses, data_config, device=device, background_dir=config.backgrounds, body=body
     )
@@ -160,17 +162,11 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         backbone_base_width=config.backbone_base_width,
         pose_head=config.pose_head,
         image_size=config.image_size,
+        concentration_gain=config.concentration_gain,
     )
     network = DistributionNetwork(network_config).to(device)
     if config.init_weights is not None and not resume:
-        initial, payload = load_network(config.init_weights, device)
-        if payload["network_config"] != network_config.to_dict():
-            raise ValueError(
-                f"--init-weights {config.init_weights} has architecture "
-                f"{payload['network_config']}, but this run builds {network_config.to_dict()}: "
-                "match --image-size, --backbone-base-width and --pose-head"
-            )
-        network.load_state_dict(initial.state_dict())
+        load_initial_weights(network, config.init_weights, device)
     optimizer = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
     step, samples_seen = 0, 0
     if resume:
