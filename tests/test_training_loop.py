@@ -13,6 +13,7 @@ from hkpd.training.checkpoint import CheckpointError, load_network, read_checkpo
 from hkpd.training.cli import main as train_main
 from hkpd.training.config import TrainConfig
 from hkpd.training.loop import build_schedule, train
+from hkpd.training.schedule import LossWeights
 
 TINY = {
     "batch_size": 8,
@@ -82,6 +83,9 @@ def test_schedule_stages_follow_the_config() -> None:
         schedule.weights_at(10).joints2d_samples > 0 and schedule.weights_at(10).joints3d_mode == 0
     )
     assert schedule.weights_at(25).joints3d_mode > 0
+    heavier = build_schedule(TrainConfig(samples_loss_from=5, samples_loss_weight=4000.0))
+    assert heavier.weights_at(10).joints2d_samples == 4000.0
+    assert heavier.weights_at(10).joints2d_mode == LossWeights().joints2d_mode
     never = build_schedule(TrainConfig(samples_loss_from=-1, joints3d_loss_from=-1))
     assert never.weights_at(10**6).joints2d_samples == 0
 

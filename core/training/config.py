@@ -33,6 +33,10 @@ class TrainConfig:
         num_samples: K, bodies sampled per example for the 2D samples loss.
         samples_loss_from: step at which the 2D loss on samples starts (the paper's stage 2);
             -1 never (the ablation "without samples loss").
+        samples_loss_weight: weight of the 2D samples loss once it is on (the default is
+            :class:`hkpd.training.schedule.LossWeights`'s, equal to the 2D mode loss's). Larger
+            values pull samples harder towards *visible* keypoints, i.e. sharpen the
+            distribution where the image shows the body, and leave hidden joints to the NLL.
         joints3d_loss_from: step at which the 3D joint loss starts (stage 3); -1 never.
         device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
         amp: mixed precision on CUDA (ignored on CPU).
@@ -68,6 +72,7 @@ class TrainConfig:
     num_samples: int = 8
     samples_loss_from: int = 2_000
     joints3d_loss_from: int = 10_000
+    samples_loss_weight: float = 1000.0
     device: str = "auto"
     amp: bool = True
     seed: int = 0
