@@ -23,9 +23,8 @@ def init_output_layer(layer: nn.Module, bias: torch.Tensor | None = None) -> Non
 
 def zero_layer(layer: nn.Module) -> None:
     """Set a layer's weights and bias to zero (a new output that starts as a no-op)."""
-    with torch.no_grad():
-        for parameter in layer.parameters():
-            parameter.zero_()
+    for parameter in layer.parameters():
+        nn.init.zeros_(parameter)
 
 
 class IndependentHead(nn.Module):

@@ -21,6 +21,7 @@ hides a limb with the explorer's occluders, so that the network sees hidden limb
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import torch
@@ -119,6 +120,7 @@ def occlusion_boxes(
     return mask, colour
 
 
+@functools.cache
 def _limb_part_table() -> torch.Tensor:
     """``(limbs, 25)`` bool: ``table[l, p + 1]`` says part p belongs to limb segment l."""
     table = torch.zeros(len(LIMB_SEGMENT_PARTS), 25, dtype=torch.bool)
@@ -130,8 +132,8 @@ def _limb_part_table() -> torch.Tensor:
 def _span(mask: torch.Tensor, margin: int) -> torch.Tensor:
     """``(B, S)`` bool to the run from its first to its last True, widened by ``margin``
     (all False where ``mask`` is)."""
-    index = torch.arange(mask.shape[1], device=mask.device)
     size = mask.shape[1]
+    index = torch.arange(size, device=mask.device)
     first = torch.where(mask, index, size).amin(1, keepdim=True)
     last = torch.where(mask, index, -1).amax(1, keepdim=True)
     return (index >= first - margin) & (index <= last + margin) & mask.any(1, keepdim=True)

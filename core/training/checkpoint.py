@@ -137,5 +137,5 @@ def load_initial_weights(network: Any, path: Path | str, device: str | torch.dev
         )
     missing, unexpected = network.load_state_dict(initial.state_dict(), strict=False)
     not_gain = [key for key in missing if "log_gain" not in key]
-    if unexpected or not_gain or (missing and not adds_gain):
+    if unexpected or not_gain:
         raise ValueError(f"--init-weights {path}: missing {missing}, unexpected {unexpected}")
