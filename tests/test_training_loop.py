@@ -12,7 +12,7 @@ from hkpd.network import DistributionNetwork
 from hkpd.training.checkpoint import CheckpointError, load_network, read_checkpoint
 from hkpd.training.cli import main as train_main
 from hkpd.training.config import TrainConfig
-from hkpd.training.loop import build_schedule, train
+from hkpd.training.loop import _append_csv, build_schedule, train
 from hkpd.training.schedule import LossWeights
 
 TINY = {
@@ -125,3 +125,15 @@ def test_worker_processes_feed_the_same_training(tmp_path) -> None:
         for name in ("thread", "workers")
     ]
     assert losses[0] == pytest.approx(losses[1], rel=1e-4)
+
+
+def test_csv_log_gains_columns_a_newer_version_adds(tmp_path) -> None:
+    log = tmp_path / "val.csv"
+    _append_csv(log, {"step": 1, "mpjpe": 70.0})
+    _append_csv(log, {"step": 2, "mpjpe": 69.0, "pose_coverage_50": 0.4})
+    _append_csv(log, {"step": 3, "mpjpe": 68.0, "pose_coverage_50": 0.45})
+    with log.open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [row["step"] for row in rows] == ["1", "2", "3"]
+    assert rows[0]["pose_coverage_50"] == "" and rows[2]["pose_coverage_50"] == "0.45"
+    assert rows[1]["mpjpe"] == "69.0"

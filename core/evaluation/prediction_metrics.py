@@ -15,6 +15,7 @@ import torch
 from hkpd.body.body_model import BodyModel
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
+from hkpd.evaluation.calibration import rotation_coverage
 from hkpd.evaluation.metrics import (
     MIN_OF_N_COUNTS,
     joint_error_2d,
@@ -42,12 +43,15 @@ class EvaluationTargets:
         betas: ``(B, K)`` shape coefficients, for PVE-T-SC.
         keypoints2d: ``(B, 17, 2)`` COCO keypoints in crop pixels.
         visible: ``(B, 17)`` bool, which ``keypoints2d`` are visible (needed with them).
+        body_pose: ``(B, 23, 3, 3)`` true relative joint rotations, for the coverage of the
+            pose distribution (:mod:`hkpd.evaluation.calibration`).
     """
 
     joints3d: torch.Tensor | None = None
     betas: torch.Tensor | None = None
     keypoints2d: torch.Tensor | None = None
     visible: torch.Tensor | None = None
+    body_pose: torch.Tensor | None = None
 
 
 @torch.no_grad()
@@ -75,7 +79,9 @@ def evaluate_prediction(
         ``{name: (B,)}``, 3D metrics in metres, 2D errors in pixels, with names
         ``mpjpe``, ``mpjpe_sc``, ``mpjpe_pa``, ``pve_t_sc``, ``joint_error_2d_mode``,
         ``joint_error_2d_samples``, ``{mpjpe,mpjpe_pa,pve_t_sc}_min_of_{N}``,
-        ``diversity_visible`` and ``diversity_invisible`` (3D COCO keypoint spread).
+        ``diversity_visible`` and ``diversity_invisible`` (3D COCO keypoint spread), and
+        ``pose_coverage_{50,90}`` (share of joints whose true rotation lies in the 50% / 90%
+        most probable region, ranked among the S samples; needs ``targets.body_pose``).
     """
     if targets.keypoints2d is not None and targets.visible is None:
         raise ValueError("targets.keypoints2d needs targets.visible (use all-True if unknown)")
@@ -105,6 +111,9 @@ def evaluate_prediction(
 
     poses = pose.sample(num_samples, generator=generator)
     betas = output.sample_betas(num_samples, generator)
+    if targets.body_pose is not None:
+        for level, share in rotation_coverage(output.F, poses, targets.body_pose).items():
+            results[f"pose_coverage_{round(level * 100)}"] = share
     per_sample: dict[str, list[torch.Tensor]] = {"mpjpe": [], "mpjpe_pa": [], "pve_t_sc": []}
     sample_keypoints = []
     for index in range(num_samples):  # one sample per pass keeps the memory bounded

@@ -15,6 +15,8 @@ METRIC_LABELS: dict[str, str] = {
     "diversity_invisible": "sample spread, invisible joints (mm)",
     "joint_error_2d_mode_box_fraction": "2D joint err. mode (box fraction)",
     "joint_error_2d_samples_box_fraction": "2D joint err. samples (box fraction)",
+    "pose_coverage_50": "true pose in 50% region (share of joints)",
+    "pose_coverage_90": "true pose in 90% region (share of joints)",
     "people": "people evaluated",
     "cases": "cases",
     "occluded_ratio_median": "hidden limb: uncertainty ratio, median",

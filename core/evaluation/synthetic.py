@@ -55,6 +55,7 @@ def evaluate_batches(
             betas=batch.betas,
             keypoints2d=batch.keypoints2d,
             visible=batch.visible,
+            body_pose=batch.body_pose,
         )
         size = batch.proxy.shape[-1]
         results = evaluate_prediction(output, body, targets, num_samples, size, generator)

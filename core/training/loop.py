@@ -113,9 +113,24 @@ def _tensorboard_writer(out: Path):
 
 
 def _append_csv(path: Path, row: dict[str, float]) -> None:
-    new = not path.exists()
+    """Append ``row``; a row with columns the file lacks (a run resumed by a newer version that
+    logs more metrics) rewrites the file with the extra columns, left empty in older rows."""
+    columns = list(row)
+    if path.exists():
+        with path.open(newline="") as handle:
+            header = next(csv.reader(handle), [])
+        if header and not set(columns) <= set(header):
+            with path.open(newline="") as handle:
+                rows = list(csv.DictReader(handle))
+            header += [column for column in columns if column not in header]
+            with path.open("w", newline="") as handle:
+                writer = csv.DictWriter(handle, fieldnames=header)
+                writer.writeheader()
+                writer.writerows(rows)
+        columns = header or columns
+    new = not path.exists() or path.stat().st_size == 0
     with path.open("a", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(row))
+        writer = csv.DictWriter(handle, fieldnames=columns)
         if new:
             writer.writeheader()
         writer.writerow(row)

@@ -1,0 +1,66 @@
+"""Are the predicted pose distributions honest? Coverage of the true joint rotations.
+
+A distribution is *calibrated* when its stated uncertainty matches its errors: the true
+rotation should fall inside the distribution's 50% most probable region half the time, inside
+its 90% region nine times in ten. For a matrix-Fisher distribution the density is
+``exp(tr(F^T R))`` up to a constant, so whether a rotation lies inside the region that holds a
+share ``q`` of the probability is read off by ranking: the *truth's rank* is the share of
+samples more probable than the truth, and the truth is inside the ``q`` region when its rank is
+below ``q``. A calibrated model's ranks are uniform on [0, 1]; an over-confident one's pile up
+near 1 (the truth is less probable than most samples), an under-confident one's near 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+
+COVERAGE_LEVELS: tuple[float, ...] = (0.5, 0.9)
+"""The probability shares of the regions that :func:`rotation_coverage` checks."""
+
+
+def _log_density_up_to_constant(F: torch.Tensor, rotations: torch.Tensor) -> torch.Tensor:
+    """``tr(F^T R)``: ``F`` ``(..., 3, 3)`` and ``rotations`` broadcastable to it; ``(...)``."""
+    return (F * rotations).sum((-2, -1))
+
+
+def truth_rank(F: torch.Tensor, samples: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
+    """Share of samples that are more probable than the true rotation, per joint.
+
+    Args:
+        F: ``(B, J, 3, 3)`` matrix-Fisher parameters (one distribution per example and joint;
+            the kinematic model's joints are conditionally independent given ``F``).
+        samples: ``(S, B, J, 3, 3)`` rotations drawn from those distributions.
+        truth: ``(B, J, 3, 3)`` the true rotations.
+
+    Returns:
+        ``(B, J)`` ranks in [0, 1], resolution ``1 / S``.
+    """
+    if samples.shape[1:] != F.shape or truth.shape != F.shape:
+        raise ValueError(
+            f"expected F (B, J, 3, 3), samples (S, B, J, 3, 3) and truth like F, got "
+            f"{tuple(F.shape)}, {tuple(samples.shape)} and {tuple(truth.shape)}"
+        )
+    truth_score = _log_density_up_to_constant(F, truth)
+    sample_score = _log_density_up_to_constant(F.unsqueeze(0), samples)
+    return (sample_score > truth_score.unsqueeze(0)).to(F.dtype).mean(0)
+
+
+def rotation_coverage(
+    F: torch.Tensor,
+    samples: torch.Tensor,
+    truth: torch.Tensor,
+    levels: Sequence[float] = COVERAGE_LEVELS,
+) -> dict[float, torch.Tensor]:
+    """Per example, the share of joints whose true rotation lies in each highest-density region.
+
+    Args:
+        F, samples, truth: as in :func:`truth_rank`.
+        levels: probability shares ``q`` of the regions (e.g. 0.9 for the 90% region).
+
+    Returns:
+        ``{q: (B,)}`` shares in [0, 1]; a calibrated model averages ``q`` over many examples.
+    """
+    ranks = truth_rank(F, samples, truth)
+    return {level: (ranks < level).to(F.dtype).mean(-1) for level in levels}
