@@ -71,3 +71,40 @@ def test_occlusion_response_runs_and_covers_the_limb() -> None:
     assert all(len(case.other_changes) == 3 for case in cases)
     summary = summarise(cases)
     assert summary["cases"] == 4 and 0 <= summary["fraction_ratio_at_least_1.5"] <= 1
+
+
+class _FixedPosterior:
+    """What ``evaluate_photos`` reads from a prediction, with chosen keypoints."""
+
+    def __init__(self, person, shift_px: float) -> None:
+        truth = torch.as_tensor(person.keypoints, dtype=torch.float32)
+        self.crop = type("Crop", (), {"side": 512.0})()
+        self.keypoints = truth + torch.tensor([shift_px, 0.0])
+        self.confidences = torch.full((17,), 0.9)
+        self.confidences[0] = 0.1  # dropped by the 0.6 threshold: not scored for the detector
+        self.keypoints[0] += 1000.0
+        self._body_points = truth + torch.tensor([0.0, 2 * shift_px])
+
+    def mode(self):
+        return type("Meshes", (), {"keypoints2d": self._body_points[None]})()
+
+    def sample(self, n: int, seed: int):
+        return type("Meshes", (), {"keypoints2d": self._body_points.expand(n, 17, 2)})()
+
+
+def test_photo_errors_score_the_prediction_and_the_detector_input() -> None:
+    from hkpd.evaluation.real_photos import AnnotatedPerson, evaluate_photos
+
+    keypoints = np.stack([np.arange(17) * 10.0, np.arange(17) * 5.0 + 50], axis=1)
+    person = AnnotatedPerson(
+        image_path=None, bbox=np.array([0, 0, 200, 400]), keypoints=keypoints,
+        visible=np.ones(17, dtype=bool),
+    )  # fmt: skip
+    predictor = type("Predictor", (), {"predict": lambda self, path, bbox: posterior})()
+    posterior = _FixedPosterior(person, shift_px=4.0)
+    result = evaluate_photos(predictor, [person], num_samples=3, show_progress=False)
+    assert result["people"] == 1 and result["failed"] == 0
+    assert abs(result["joint_error_2d_mode"] - 8.0 * 256 / 512) < 1e-4
+    assert abs(result["joint_error_2d_samples"] - 8.0 * 256 / 512) < 1e-4
+    assert abs(result["joint_error_2d_mode_box_fraction"] - 8.0 / 400) < 1e-6
+    assert abs(result["joint_error_2d_detector"] - 4.0 * 256 / 512) < 1e-4
