@@ -21,7 +21,7 @@ from hkpd.body import BodyModel
 from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS, SMPL_JOINT_NAMES
 from hkpd.prediction.occluders import apply_occluders, points_under_boxes
 from hkpd.proxy import build_proxy_batch
-from hkpd.synthesis.generator import SyntheticDataGenerator, batch_seed
+from hkpd.synthesis.generator import RenderedBatch, SyntheticDataGenerator, batch_seed
 from hkpd.uncertainty import vertex_uncertainty
 
 OCCLUDED_LIMBS = ("left_forearm", "right_forearm", "left_lower_leg", "right_lower_leg")
@@ -50,12 +50,41 @@ LIMB_PART_INDICES: dict[str, torch.Tensor] = {
 """The parts of each limb as SMPL joint-group indices."""
 
 
-def _limb_vertex_masks(body: BodyModel) -> dict[str, torch.Tensor]:
+def limb_vertex_masks(body: BodyModel) -> dict[str, torch.Tensor]:
     """``{limb: (V,) bool}``, the body's vertices labelled with one of the limb's parts."""
     return {
         limb: torch.isin(body.part_labels, parts.to(body.part_labels.device))
         for limb, parts in LIMB_PART_INDICES.items()
     }
+
+
+def cover_limb(
+    rendered: RenderedBatch, item: int, limb: str
+) -> tuple[np.ndarray, torch.Tensor] | None:
+    """One rendered image with ``limb`` covered by its bounding box (plus a margin) in black.
+
+    Args:
+        rendered: a synthetic batch (its part map says where the limb is).
+        item: which image of the batch.
+        limb: a key of :data:`LIMB_PARTS`.
+
+    Returns:
+        ``(image, present)``: the ``(S, S, 3)`` uint8 covered image and the ``(17,)`` bool input
+        keypoints that stay present (those under the box are dropped); None when the limb shows
+        fewer than ``MIN_LIMB_PIXELS`` pixels.
+    """
+    size = rendered.images.shape[1]
+    margin = max(1, round(BOX_MARGIN_PX_AT_256 * size / 256))
+    pixels = torch.isin(rendered.part_map[item].cpu(), LIMB_PART_INDICES[limb]).nonzero()
+    if len(pixels) < MIN_LIMB_PIXELS:
+        return None
+    (y0, x0), (y1, x1) = pixels.amin(0).tolist(), pixels.amax(0).tolist()
+    x0, y0 = max(0, x0 - margin), max(0, y0 - margin)
+    x1, y1 = min(size, x1 + margin + 1), min(size, y1 + margin + 1)
+    box = [(x0, y0, x1, y1)]
+    under = points_under_boxes(rendered.input_keypoints[item].cpu().numpy(), box)
+    present = rendered.input_present[item].cpu() & ~torch.from_numpy(under)
+    return apply_occluders(rendered.images[item], box), present
 
 
 def _per_vertex_uncertainty(network, proxy, body, samples: int, seed: int) -> torch.Tensor:
@@ -93,28 +122,21 @@ def occlusion_response(
         One :class:`OcclusionCase` per evaluated image.
     """
     body = generator.body
-    masks = _limb_vertex_masks(body)
+    masks = limb_vertex_masks(body)
     limbs = list(LIMB_PARTS)
     results: list[OcclusionCase] = []
     batch_index = 0
     while len(results) < cases:
         rendered = generator.generate(batch_size, batch_seed(seed, batch_index))
         batch_index += 1
-        size = rendered.images.shape[1]
-        margin = max(1, round(BOX_MARGIN_PX_AT_256 * size / 256))
         covered_images, covered_present, chosen = [], [], []
         for item in range(batch_size):
             limb = limbs[(len(results) + len(chosen)) % len(limbs)]
-            pixels = torch.isin(rendered.part_map[item].cpu(), LIMB_PART_INDICES[limb]).nonzero()
-            if len(pixels) < MIN_LIMB_PIXELS:
+            hidden = cover_limb(rendered, item, limb)
+            if hidden is None:
                 continue
-            (y0, x0), (y1, x1) = pixels.amin(0).tolist(), pixels.amax(0).tolist()
-            x0, y0 = max(0, x0 - margin), max(0, y0 - margin)
-            x1, y1 = min(size, x1 + margin + 1), min(size, y1 + margin + 1)
-            box = [(x0, y0, x1, y1)]
-            under = points_under_boxes(rendered.input_keypoints[item].cpu().numpy(), box)
-            covered_images.append(apply_occluders(rendered.images[item], box))
-            covered_present.append(rendered.input_present[item].cpu() & ~torch.from_numpy(under))
+            covered_images.append(hidden[0])
+            covered_present.append(hidden[1])
             chosen.append((item, limb))
         if not chosen:
             continue

@@ -1,0 +1,159 @@
+"""Why does covering a limb raise its uncertainty so little? Print the model card's diagnosis.
+
+For synthetic test images with one limb covered (the occlusion-response protocol of
+``hkpd-eval``), two tables, clean vs covered:
+
+1. *Where the limb's spread comes from*: the limb's mean per-vertex uncertainty when only one
+   joint along its kinematic chain is sampled (the others held at the mode, mean shape), and
+   with every joint sampled. Centimetres, median over images.
+2. *Is the spread honest?*: for the limb's two joints (shoulder and elbow, or hip and knee), the
+   mode's angular error against the true rotation and the samples' mean angle from the mode.
+   Degrees, mean over images. A calibrated model has samples about as far from the mode as the
+   truth is. For scale, the last rows give how far the images' true rotations lie from their
+   own mean rotation: what a model that knew only the test poses' average would be off by.
+
+    python docs/diagnose_limb_uncertainty.py --model assets/models/hkpd_hierarchical.pt \\
+        --poses poses.npz --limb left_forearm
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import roma
+import torch
+
+from hkpd.body import BodyModel
+from hkpd.evaluation.occlusion_response import OCCLUDED_LIMBS, cover_limb, limb_vertex_masks
+from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
+from hkpd.network.output import NetworkOutput
+from hkpd.poses import pose_source
+from hkpd.proxy import build_proxy_batch
+from hkpd.synthesis.augmentations import AugmentationConfig
+from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator, batch_seed
+from hkpd.training.checkpoint import load_network
+from hkpd.uncertainty import vertex_uncertainty
+
+CENTIMETRES_PER_METRE = 100.0
+
+
+def chain_to(joint: str) -> list[str]:
+    """The body joints from the first below the pelvis down to ``joint``, root first."""
+    chain, index = [], BODY_JOINT_NAMES.index(joint)
+    while index >= 0:
+        chain.append(BODY_JOINT_NAMES[index])
+        index = BODY_PARENTS[index]
+    return chain[::-1]
+
+
+def limb_spread(
+    output: NetworkOutput, poses: torch.Tensor, body: BodyModel, mask: torch.Tensor
+) -> torch.Tensor:
+    """``(B,)`` mean per-vertex uncertainty of the ``mask`` vertices, metres.
+
+    Args:
+        output: the network's prediction for B images (mean shape and mode orientation used).
+        poses: ``(S, B, 23, 3, 3)`` sampled relative rotations.
+        mask: ``(V,)`` bool, the limb's vertices.
+    """
+    spreads = []
+    for item in range(output.batch_size):
+        count = poses.shape[0]
+        vertices = body(
+            output.shape_mean[item].expand(count, -1),
+            poses[:, item],
+            output.global_orient[item].expand(count, 3, 3),
+        ).vertices
+        spreads.append(vertex_uncertainty(vertices)[mask].mean())
+    return torch.stack(spreads)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--model", type=Path, default=Path("assets/models/hkpd_hierarchical.pt"))
+    parser.add_argument("--poses", type=Path, help="pose bank (test split); else procedural")
+    parser.add_argument("--limb", choices=OCCLUDED_LIMBS, default="left_forearm")
+    parser.add_argument("--batches", type=int, default=4, help="batches of 16 test images")
+    parser.add_argument("--samples", type=int, default=50)
+    args = parser.parse_args()
+    torch.set_grad_enabled(False)
+
+    network, _ = load_network(args.model, "cpu")
+    config = SyntheticDataConfig(
+        image_size=int(network.config.image_size), augmentation=AugmentationConfig.disabled()
+    )
+    body = BodyModel()
+    generator = SyntheticDataGenerator(pose_source(args.poses, "test"), config, "cpu", body=body)
+    mask = limb_vertex_masks(body)[args.limb]
+    side, kind = args.limb.split("_", 1)
+    lower_joint = f"{side}_elbow" if kind == "forearm" else f"{side}_knee"
+    chain = chain_to(lower_joint)
+    spreads: dict[tuple[str, str], list[torch.Tensor]] = {}
+    angles: dict[tuple[str, str], list[torch.Tensor]] = {}
+    truths: list[torch.Tensor] = []
+    for batch_index in range(args.batches):
+        rendered = generator.generate(16, batch_seed(505, batch_index))
+        covered = {item: cover_limb(rendered, item, args.limb) for item in range(16)}
+        items = [item for item, result in covered.items() if result is not None]
+        proxies = {
+            "clean": rendered.batch.proxy[items],
+            "covered": build_proxy_batch(
+                np.stack([covered[item][0] for item in items]),
+                rendered.input_keypoints[items],
+                torch.stack([covered[item][1] for item in items]),
+                "cpu",
+            ),
+        }
+        truth = rendered.batch.body_pose[items]
+        truths.append(truth)
+        for view, proxy in proxies.items():
+            output = network(proxy)
+            distribution = output.pose_distribution()
+            mode = distribution.mode
+            random = torch.Generator().manual_seed(batch_index)
+            samples = distribution.sample(args.samples, generator=random)
+            spreads.setdefault((view, "all joints"), []).append(
+                limb_spread(output, samples, body, mask)
+            )
+            for joint in chain:
+                index = BODY_JOINT_NAMES.index(joint)
+                only = mode.expand(args.samples, *mode.shape).clone()
+                only[:, :, index] = samples[:, :, index]
+                spreads.setdefault((view, joint), []).append(limb_spread(output, only, body, mask))
+            for joint in chain[-2:]:
+                index = BODY_JOINT_NAMES.index(joint)
+                error = roma.rotmat_geodesic_distance(mode[:, index], truth[:, index])
+                spread = roma.rotmat_geodesic_distance(
+                    samples[:, :, index], mode[None, :, index]
+                ).mean(0)
+                angles.setdefault((view, f"{joint} mode error"), []).append(error)
+                angles.setdefault((view, f"{joint} sample spread"), []).append(spread)
+
+    count = len(torch.cat(spreads[("clean", "all joints")]))
+    print(f"{args.limb}, {count} test images, {args.samples} samples, model {args.model}\n")
+    print("| sampled joints | clean (cm) | covered (cm) |\n|---|---|---|")
+    for joint in [*chain, "all joints"]:
+        clean, hidden = (
+            float(torch.cat(spreads[(view, joint)]).median()) * CENTIMETRES_PER_METRE
+            for view in ("clean", "covered")
+        )
+        print(f"| {joint} | {clean:.1f} | {hidden:.1f} |")
+    print("\n| joint: measure | clean (deg) | covered (deg) |\n|---|---|---|")
+    for name in dict.fromkeys(name for _, name in angles):
+        clean, hidden = (
+            float(torch.rad2deg(torch.cat(angles[(view, name)])).mean())
+            for view in ("clean", "covered")
+        )
+        print(f"| {name} | {clean:.1f} | {hidden:.1f} |")
+    every_truth = torch.cat(truths)
+    for joint in chain[-2:]:
+        rotations = every_truth[:, BODY_JOINT_NAMES.index(joint)]
+        mean_rotation = roma.special_procrustes(rotations.mean(0))
+        distance = torch.rad2deg(roma.rotmat_geodesic_distance(rotations, mean_rotation)).mean()
+        print(f"| {joint}: true rotations about their mean | {distance:.1f} | (same) |")
+
+
+if __name__ == "__main__":
+    main()
