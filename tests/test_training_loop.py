@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+from itertools import pairwise
 from pathlib import Path
 
 import pytest
@@ -10,8 +11,9 @@ import torch
 
 from hkpd.network import DistributionNetwork
 from hkpd.training.checkpoint import CheckpointError, load_network, read_checkpoint
+from hkpd.training.cli import build_parser
 from hkpd.training.cli import main as train_main
-from hkpd.training.config import TrainConfig
+from hkpd.training.config import TrainConfig, learning_rate_at
 from hkpd.training.loop import _append_csv, build_schedule, train
 from hkpd.training.schedule import LossWeights
 
@@ -137,3 +139,18 @@ def test_csv_log_gains_columns_a_newer_version_adds(tmp_path) -> None:
     assert [row["step"] for row in rows] == ["1", "2", "3"]
     assert rows[0]["pose_coverage_50"] == "" and rows[2]["pose_coverage_50"] == "0.45"
     assert rows[1]["mpjpe"] == "69.0"
+
+
+def test_learning_rate_is_constant_or_decays_along_a_half_cosine(run, tmp_path) -> None:
+    config, _ = run
+    assert {float(r["learning_rate"]) for r in rows(config.out / "train.csv")} == {1e-3}
+    decaying = TrainConfig(steps=101, learning_rate=1e-3, final_learning_rate=1e-5)
+    rates = [learning_rate_at(step, decaying) for step in range(101)]
+    assert rates[0] == pytest.approx(1e-3) and rates[-1] == pytest.approx(1e-5)
+    assert rates[50] == pytest.approx((1e-3 + 1e-5) / 2)
+    assert all(later < earlier for earlier, later in pairwise(rates))
+    assert learning_rate_at(500, decaying) == pytest.approx(1e-5)  # a run extended past its end
+    parsed = build_parser().parse_args(["--final-learning-rate", "3e-5"])
+    assert parsed.final_learning_rate == 3e-5
+    with pytest.raises(ValueError, match="final-learning-rate"):
+        train(TrainConfig(out=tmp_path, final_learning_rate=0.0, **TINY), show_progress=False)

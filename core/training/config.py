@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import types
 import typing
 from dataclasses import dataclass
@@ -29,7 +30,10 @@ class TrainConfig:
         pose_head: ``"hierarchical"`` (the paper's f_hier) or ``"independent"`` (f_indep).
         backbone_base_width: channels of the first ResNet-18 stage (64 is the paper's; 32 or 16
             for CPU training).
-        learning_rate: Adam learning rate.
+        learning_rate: Adam learning rate (at the first step, if ``final_learning_rate`` is set).
+        final_learning_rate: None keeps ``learning_rate`` constant; a value decays the rate to it
+            along a half cosine over the ``steps`` of the run (:func:`learning_rate_at`), e.g. to
+            anneal a model at the end of its training.
         num_samples: K, bodies sampled per example for the 2D samples loss.
         samples_loss_from: step at which the 2D loss on samples starts (the paper's stage 2);
             -1 never (the ablation "without samples loss").
@@ -69,6 +73,7 @@ class TrainConfig:
     pose_head: str = "hierarchical"
     backbone_base_width: int = 64
     learning_rate: float = 1e-4
+    final_learning_rate: float | None = None
     num_samples: int = 8
     samples_loss_from: int = 2_000
     joints3d_loss_from: int = 10_000
@@ -115,6 +120,15 @@ class TrainConfig:
         if not path.is_file():
             raise FileNotFoundError(f"training config {path} does not exist")
         return cls.from_dict(json.loads(path.read_text()))
+
+
+def learning_rate_at(step: int, config: TrainConfig) -> float:
+    """The learning rate for optimiser step ``step`` (0-based) of a run with ``config``."""
+    if config.final_learning_rate is None:
+        return config.learning_rate
+    progress = min(max(step, 0) / max(config.steps - 1, 1), 1.0)
+    blend = 0.5 * (1.0 + math.cos(math.pi * progress))
+    return config.final_learning_rate + (config.learning_rate - config.final_learning_rate) * blend
 
 
 def _members(hint) -> tuple:

@@ -49,14 +49,21 @@ def plot_training_curves(train_csv: Path, val_csv: Path, out: Path) -> Path:
     if steps:
         left.legend(fontsize=7, ncol=2)
     val_steps = val.get("step", [])
+    shares = {key: values for key, values in val.items() if key.startswith("pose_coverage")}
     for key, values in val.items():
-        if key == "step":
+        if key == "step" or key in shares:
             continue
         right.plot(val_steps, values, marker="o", markersize=3, label=key)
     right.set(title="validation (mm for 3D, px at 256 for 2D)", xlabel="step")
     right.grid(alpha=0.3)
     if val_steps:
-        right.legend(fontsize=7, ncol=2)
+        right.legend(fontsize=7, ncol=2, loc="upper left")
+    if shares:  # calibration shares in [0, 1] on their own axis
+        share_axis = right.twinx()
+        for key, values in shares.items():
+            share_axis.plot(val_steps, values, linestyle="--", marker="s", markersize=3, label=key)
+        share_axis.set(ylim=(0, 1), ylabel="share of joints inside the region")
+        share_axis.legend(fontsize=7, loc="upper right")
     figure.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(out)

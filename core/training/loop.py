@@ -35,7 +35,7 @@ from hkpd.synthesis.generator import (
 )
 from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
 from hkpd.training.checkpoint import load_initial_weights, read_checkpoint, save_checkpoint
-from hkpd.training.config import TrainConfig
+from hkpd.training.config import TrainConfig, learning_rate_at
 from hkpd.training.curves import plot_training_curves
 from hkpd.training.losses import compute_losses
 from hkpd.training.prefetch import Prefetcher
@@ -156,9 +156,14 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
 
     Raises:
         FileNotFoundError: a data path (pose bank, backgrounds, resume checkpoint) is missing.
+        ValueError: a learning rate is not positive.
     """
     from hkpd.evaluation.synthetic import evaluate_batches
 
+    for name in ("learning_rate", "final_learning_rate"):
+        value = getattr(config, name)
+        if value is not None and not value > 0:
+            raise ValueError(f"--{name.replace('_', '-')} must be positive, got {value}")
     _check_paths(config)
     device = resolve_device(config.device)
     out = Path(config.out)
@@ -257,6 +262,9 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
             optimizer.zero_grad(set_to_none=True)
             terms["total"].backward()
             torch.nn.utils.clip_grad_norm_(network.parameters(), 10.0)
+            rate = learning_rate_at(step, config)
+            for group in optimizer.param_groups:
+                group["lr"] = rate
             optimizer.step()
             step += 1
             samples_seen += batch.batch_size
@@ -272,10 +280,14 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
             progress.update(1)
             if step % config.log_every == 0 or step == config.steps:
                 now = time.perf_counter()
-                rate = window_samples / max(now - window_start, 1e-9)
+                samples_rate = window_samples / max(now - window_start, 1e-9)
                 window_start, window_samples = now, 0
-                row = {"step": step, "seconds": round(now - started, 2),
-                       "samples_per_second": round(rate, 2)}  # fmt: skip
+                row = {
+                    "step": step,
+                    "seconds": round(now - started, 2),
+                    "samples_per_second": round(samples_rate, 2),
+                    "learning_rate": rate,
+                }
                 row |= {name: float(value.detach()) for name, value in terms.items()}
                 _append_csv(out / "train.csv", _complete_row(row))
                 if board is not None:
@@ -311,7 +323,7 @@ _LOG_TERMS = (*LOSS_TERMS, "total")
 
 def _complete_row(row: dict[str, float]) -> dict[str, float]:
     """Every loss column in a fixed order (inactive terms empty), so CSV columns never shift."""
-    fixed = {key: row[key] for key in ("step", "seconds", "samples_per_second")}
+    fixed = {key: row[key] for key in ("step", "seconds", "samples_per_second", "learning_rate")}
     return fixed | {name: row.get(name, "") for name in _LOG_TERMS}
 
 
