@@ -26,7 +26,12 @@ import roma
 import torch
 
 from hkpd.body import BodyModel
-from hkpd.evaluation.occlusion_response import OCCLUDED_LIMBS, cover_limb, limb_vertex_masks
+from hkpd.evaluation.occlusion_response import (
+    OCCLUDED_LIMBS,
+    cover_limb,
+    limb_vertex_masks,
+    sampled_vertex_uncertainty,
+)
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
 from hkpd.network.output import NetworkOutput
 from hkpd.poses import pose_source
@@ -34,7 +39,6 @@ from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.augmentations import AugmentationConfig
 from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator, batch_seed
 from hkpd.training.checkpoint import load_network
-from hkpd.uncertainty import vertex_uncertainty
 
 CENTIMETRES_PER_METRE = 100.0
 
@@ -58,16 +62,8 @@ def limb_spread(
         poses: ``(S, B, 23, 3, 3)`` sampled relative rotations.
         mask: ``(V,)`` bool, the limb's vertices.
     """
-    spreads = []
-    for item in range(output.batch_size):
-        count = poses.shape[0]
-        vertices = body(
-            output.shape_mean[item].expand(count, -1),
-            poses[:, item],
-            output.global_orient[item].expand(count, 3, 3),
-        ).vertices
-        spreads.append(vertex_uncertainty(vertices)[mask].mean())
-    return torch.stack(spreads)
+    mean_shape = output.shape_mean.expand(poses.shape[0], -1, -1)
+    return sampled_vertex_uncertainty(output, poses, mean_shape, body)[:, mask].mean(-1)
 
 
 def main() -> None:

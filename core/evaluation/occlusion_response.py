@@ -19,6 +19,7 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS, SMPL_JOINT_NAMES
+from hkpd.network.output import NetworkOutput
 from hkpd.prediction.occluders import apply_occluders, points_under_boxes
 from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.generator import RenderedBatch, SyntheticDataGenerator, batch_seed
@@ -87,18 +88,33 @@ def cover_limb(
     return apply_occluders(rendered.images[item], box), present
 
 
+def sampled_vertex_uncertainty(
+    output: NetworkOutput, poses: torch.Tensor, betas: torch.Tensor, body: BodyModel
+) -> torch.Tensor:
+    """``(B, V)`` per-vertex uncertainty (metres) of S bodies per image, each posed with the
+    image's predicted global rotation.
+
+    Args:
+        output: the network's prediction for B images.
+        poses: ``(S, B, 23, 3, 3)`` relative joint rotations.
+        betas: ``(S, B, K)`` shape coefficients.
+    """
+    count = poses.shape[0]
+    result = []
+    for item in range(output.batch_size):
+        orient = output.global_orient[item].expand(count, 3, 3)
+        vertices = body(betas[:, item], poses[:, item], orient).vertices
+        result.append(vertex_uncertainty(vertices))
+    return torch.stack(result)
+
+
 def _per_vertex_uncertainty(network, proxy, body, samples: int, seed: int) -> torch.Tensor:
     """``(B, V)`` uncertainty of each image's predicted posterior, metres."""
     output = network(proxy)
     generator = torch.Generator(device=proxy.device).manual_seed(seed)
     poses = output.pose_distribution().sample(samples, generator=generator)  # (S, B, 23, 3, 3)
     betas = output.sample_betas(samples, generator)
-    result = []
-    for item in range(proxy.shape[0]):
-        orient = output.global_orient[item].expand(samples, 3, 3)
-        vertices = body(betas[:, item], poses[:, item], orient).vertices
-        result.append(vertex_uncertainty(vertices))
-    return torch.stack(result)
+    return sampled_vertex_uncertainty(output, poses, betas, body)
 
 
 @torch.no_grad()
