@@ -11,6 +11,11 @@ For synthetic test images with one limb covered (the occlusion-response protocol
    Degrees, mean over images. A calibrated model has samples about as far from the mode as the
    truth is. For scale, the last rows give how far the images' true rotations lie from their
    own mean rotation: what a model that knew only the test poses' average would be off by.
+3. *How much less concentrated would the hidden limb have to be?*: the covered limb's
+   uncertainty ratio (covered / clean, every joint sampled, median over images) when the
+   covered image's distributions for the limb's own joints (elbow, wrist, hand or knee, ankle,
+   foot) are scaled by a factor (F -> factor * F; 0.25 doubles their angular spread) and its
+   ancestors are left as predicted.
 
     python docs/diagnose_limb_uncertainty.py --model assets/models/hkpd_hierarchical.pt \\
         --poses poses.npz --limb left_forearm
@@ -19,6 +24,7 @@ For synthetic test images with one limb covered (the occlusion-response protocol
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +33,7 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.evaluation.occlusion_response import (
+    LIMB_PARTS,
     OCCLUDED_LIMBS,
     cover_limb,
     limb_vertex_masks,
@@ -41,6 +48,7 @@ from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
 from hkpd.training.checkpoint import load_network
 
 CENTIMETRES_PER_METRE = 100.0
+CONCENTRATION_FACTORS = (1.0, 0.5, 0.25, 0.1)
 
 
 def chain_to(joint: str) -> list[str]:
@@ -86,6 +94,8 @@ def main() -> None:
     side, kind = args.limb.split("_", 1)
     lower_joint = f"{side}_elbow" if kind == "forearm" else f"{side}_knee"
     chain = chain_to(lower_joint)
+    own_joints = [BODY_JOINT_NAMES.index(part) for part in LIMB_PARTS[args.limb]]
+    scaled_ratios: dict[float, list[torch.Tensor]] = {}
     spreads: dict[tuple[str, str], list[torch.Tensor]] = {}
     angles: dict[tuple[str, str], list[torch.Tensor]] = {}
     truths: list[torch.Tensor] = []
@@ -104,8 +114,9 @@ def main() -> None:
         }
         truth = rendered.batch.body_pose[items]
         truths.append(truth)
+        outputs: dict[str, NetworkOutput] = {}
         for view, proxy in proxies.items():
-            output = network(proxy)
+            output = outputs[view] = network(proxy)
             distribution = output.pose_distribution()
             mode = distribution.mode
             random = torch.Generator().manual_seed(batch_index)
@@ -126,6 +137,15 @@ def main() -> None:
                 ).mean(0)
                 angles.setdefault((view, f"{joint} mode error"), []).append(error)
                 angles.setdefault((view, f"{joint} sample spread"), []).append(spread)
+        clean_spread = spreads[("clean", "all joints")][-1]
+        for factor in CONCENTRATION_FACTORS:
+            F = outputs["covered"].F.clone()
+            F[:, own_joints] *= factor
+            scaled = replace(outputs["covered"], F=F)
+            random = torch.Generator().manual_seed(batch_index)
+            samples = scaled.pose_distribution().sample(args.samples, generator=random)
+            covered_spread = limb_spread(scaled, samples, body, mask)
+            scaled_ratios.setdefault(factor, []).append(covered_spread / clean_spread)
 
     count = len(torch.cat(spreads[("clean", "all joints")]))
     print(f"{args.limb}, {count} test images, {args.samples} samples, model {args.model}\n")
@@ -149,6 +169,9 @@ def main() -> None:
         mean_rotation = roma.special_procrustes(rotations.mean(0))
         distance = torch.rad2deg(roma.rotmat_geodesic_distance(rotations, mean_rotation)).mean()
         print(f"| {joint}: true rotations about their mean | {distance:.1f} | (same) |")
+    print("\n| covered limb's own joints: F scaled by | uncertainty ratio, median |\n|---|---|")
+    for factor, ratios in scaled_ratios.items():
+        print(f"| {factor:g} | {float(torch.cat(ratios).median()):.2f} |")
 
 
 if __name__ == "__main__":
