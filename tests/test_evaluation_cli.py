@@ -108,3 +108,48 @@ def test_photo_errors_score_the_prediction_and_the_detector_input() -> None:
     assert abs(result["joint_error_2d_samples"] - 8.0 * 256 / 512) < 1e-4
     assert abs(result["joint_error_2d_mode_box_fraction"] - 8.0 / 400) < 1e-6
     assert abs(result["joint_error_2d_detector"] - 4.0 * 256 / 512) < 1e-4
+
+
+def test_concentration_scaling_scales_F_and_keeps_the_mode() -> None:
+    import pytest
+
+    from hkpd.evaluation.concentration_scaling import ConcentrationScaled
+
+    torch.manual_seed(0)
+    network = DistributionNetwork(NetworkConfig(backbone_base_width=8, image_size=64)).eval()
+    proxy = torch.rand(2, 18, 64, 64)
+    with torch.no_grad():
+        plain, widened = network(proxy), ConcentrationScaled(network, 0.25)(proxy)
+    torch.testing.assert_close(widened.F, 0.25 * plain.F)
+    torch.testing.assert_close(
+        widened.pose_distribution().mode, plain.pose_distribution().mode, atol=1e-5, rtol=0
+    )
+    torch.testing.assert_close(widened.camera, plain.camera)
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="positive"):
+            ConcentrationScaled(network, bad)
+
+
+def test_eval_reports_one_row_per_concentration_scale(tmp_path, capsys) -> None:
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    torch.manual_seed(0)
+    checkpoint = save_checkpoint(
+        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    report = tmp_path / "report.md"
+    arguments = [str(checkpoint), "--count", "3", "--samples", "4", "--out", str(report)]
+    assert eval_main([*arguments, "--concentration-scale", "1", "1000"]) == 0
+    lines = report.read_text().splitlines()
+    rows = {}
+    for factor in ("1", "1000"):
+        row = next(line for line in lines if line.startswith(f"| {checkpoint} (F x {factor})"))
+        rows[factor] = [float(cell) for cell in row.strip("|").split("|")[1:]]
+    # MPJPE-SC and the 2D mode error come from the mode, which scaling F does not move ...
+    assert rows["1"][0] == rows["1000"][0] and rows["1"][3] == rows["1000"][3]
+    # ... while very concentrated distributions pull the samples onto the mode.
+    gaps = {factor: abs(values[4] - values[3]) for factor, values in rows.items()}
+    assert gaps["1000"] < 0.2 * gaps["1"]
+    assert eval_main([*arguments, "--concentration-scale", "0"]) == 2
+    assert "positive" in capsys.readouterr().err
+    assert eval_main([*arguments, "--concentration-scale", "2", "--coco", str(tmp_path)]) == 2
+    assert "separate run" in capsys.readouterr().err

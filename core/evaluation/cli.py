@@ -5,6 +5,7 @@ Examples::
     hkpd-eval runs/a/last.pt runs/b/last.pt --poses poses.npz        # synthetic test set
     hkpd-eval runs/a/last.pt --coco ../shared/data/coco_mini --no-synthetic
     hkpd-eval runs/a/last.pt --poses poses.npz --out report.md
+    hkpd-eval runs/a/last.pt --poses poses.npz --concentration-scale 0.5 1 2   # calibration
 
 The synthetic test set is 1000 examples (``--count``) rendered from the pose bank's *test*
 split (held-out subjects) with a fixed seed, at each network's own input size, so every run of
@@ -46,6 +47,16 @@ def build_parser() -> argparse.ArgumentParser:
         default=0,
         help="also measure the occlusion response on this many synthetic images (e.g. 100)",
     )
+    parser.add_argument(
+        "--concentration-scale",
+        type=float,
+        nargs="+",
+        default=[1.0],
+        metavar="FACTOR",
+        help="evaluate each checkpoint with every predicted F multiplied by these factors "
+        "(post-hoc temperature: < 1 widens the pose distributions, > 1 sharpens them; "
+        "synthetic and occlusion evaluations only; default 1, as trained)",
+    )
     parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
     parser.add_argument("--device", default="auto")
     parser.add_argument("--out", type=Path, help="also write the markdown report here")
@@ -75,12 +86,30 @@ def _network_and_test_generator(
     return network, generator
 
 
-def evaluate_synthetic(checkpoint: Path, poses: Path | None, count: int, samples: int, device):
-    """Metrics of one checkpoint on the fixed synthetic test set (3D in mm, 2D in px at 256)."""
+def _scaled(network: torch.nn.Module, concentration_scale: float) -> torch.nn.Module:
+    """The network itself at scale 1, else wrapped to multiply its F by the scale."""
+    if concentration_scale == 1.0:
+        return network
+    from hkpd.evaluation.concentration_scaling import ConcentrationScaled
+
+    return ConcentrationScaled(network, concentration_scale)
+
+
+def evaluate_synthetic(
+    checkpoint: Path,
+    poses: Path | None,
+    count: int,
+    samples: int,
+    device,
+    concentration_scale: float = 1.0,
+):
+    """Metrics of one checkpoint on the fixed synthetic test set (3D in mm, 2D in px at 256),
+    optionally with its F scaled (:mod:`hkpd.evaluation.concentration_scaling`)."""
     from hkpd.evaluation.synthetic import evaluate_batches
     from hkpd.synthesis.generator import iter_fixed_test_set
 
     network, generator = _network_and_test_generator(checkpoint, poses, device)
+    network = _scaled(network, concentration_scale)
     batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
     size = generator.config.image_size
     return evaluate_batches(network, batches, generator.body, samples) | {"image_size": size}
@@ -106,6 +135,13 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--figure draws the synthetic results: drop --no-synthetic")
         if arguments.coco is not None and not arguments.coco.is_dir():
             raise FileNotFoundError(f"COCO folder {arguments.coco} does not exist")
+        if any(not (0 < factor < float("inf")) for factor in arguments.concentration_scale):
+            raise ValueError("--concentration-scale factors must be positive numbers")
+        if arguments.coco is not None and arguments.concentration_scale != [1.0]:
+            raise ValueError(
+                "--concentration-scale applies to the synthetic and occlusion evaluations: "
+                "evaluate --coco in a separate run without it"
+            )
     except (FileNotFoundError, ValueError) as error:
         print(f"hkpd-eval: error: {error}", file=sys.stderr)
         return 2
@@ -121,11 +157,13 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
     """Run the requested evaluations and return the markdown report."""
     report = []
     if not arguments.no_synthetic:
-        rows = {}
-        for checkpoint in arguments.checkpoints:
-            rows[str(checkpoint)] = evaluate_synthetic(
-                checkpoint, arguments.poses, arguments.count, arguments.samples, device
+        rows = {
+            _row_name(checkpoint, factor, arguments): evaluate_synthetic(
+                checkpoint, arguments.poses, arguments.count, arguments.samples, device, factor
             )
+            for checkpoint in arguments.checkpoints
+            for factor in arguments.concentration_scale
+        }
         source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
         report.append(
             f"### Synthetic test set: {arguments.count} examples, {source}, seed "
@@ -156,10 +194,11 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
         )
     if arguments.occlusion_cases > 0:
         rows = {
-            str(checkpoint): occlusion_summary(
-                checkpoint, arguments.poses, arguments.occlusion_cases, device
+            _row_name(checkpoint, factor, arguments): occlusion_summary(
+                checkpoint, arguments.poses, arguments.occlusion_cases, device, factor
             )
             for checkpoint in arguments.checkpoints
+            for factor in arguments.concentration_scale
         }
         report.append(
             f"### Occlusion response: {arguments.occlusion_cases} synthetic test images, one "
@@ -169,15 +208,25 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
     return "\n".join(report)
 
 
-def occlusion_summary(checkpoint: Path, poses: Path | None, cases: int, device) -> dict:
-    """:func:`hkpd.evaluation.occlusion_response.summarise` for one checkpoint."""
+def _row_name(checkpoint: Path, factor: float, arguments: argparse.Namespace) -> str:
+    """The checkpoint, plus its concentration scale when more than "as trained" is asked for."""
+    if arguments.concentration_scale == [1.0]:
+        return str(checkpoint)
+    return f"{checkpoint} (F x {factor:g})"
+
+
+def occlusion_summary(
+    checkpoint: Path, poses: Path | None, cases: int, device, concentration_scale: float = 1.0
+) -> dict:
+    """:func:`hkpd.evaluation.occlusion_response.summarise` for one checkpoint (F optionally
+    scaled)."""
     from hkpd.evaluation.occlusion_response import occlusion_response, summarise
     from hkpd.synthesis.augmentations import AugmentationConfig
 
     network, generator = _network_and_test_generator(
         checkpoint, poses, device, AugmentationConfig.disabled()
     )
-    return summarise(occlusion_response(network, generator, cases))
+    return summarise(occlusion_response(_scaled(network, concentration_scale), generator, cases))
 
 
 if __name__ == "__main__":
