@@ -153,3 +153,10 @@ def test_eval_reports_one_row_per_concentration_scale(tmp_path, capsys) -> None:
     assert "positive" in capsys.readouterr().err
     assert eval_main([*arguments, "--concentration-scale", "2", "--coco", str(tmp_path)]) == 2
     assert "separate run" in capsys.readouterr().err
+
+
+def test_report_keeps_two_decimals_below_ten() -> None:
+    from hkpd.evaluation.report import markdown_table
+
+    table = markdown_table({"m": {"a": 0.12345, "b": 1.194, "c": 58.83, "d": float("nan")}})
+    assert table.splitlines()[-1] == "| m | 0.123 | 1.19 | 58.8 | – |"

@@ -43,7 +43,8 @@ def label(name: str) -> str:
 
 
 def markdown_table(rows: dict[str, dict[str, float]], columns: list[str] | None = None) -> str:
-    """One row per model/dataset, one column per metric (values with one decimal)."""
+    """One row per model/dataset, one column per metric (three significant decimals below 1,
+    two below 10, e.g. pixel errors and uncertainty ratios, else one)."""
     if not rows:
         return "(no results)\n"
     columns = columns or list(next(iter(rows.values())))
@@ -62,7 +63,9 @@ def markdown_table(rows: dict[str, dict[str, float]], columns: list[str] | None 
 def _format(value: float | None) -> str:
     if value is None or math.isnan(value):
         return "–"
-    return f"{value:.3f}" if abs(value) < 1 else f"{value:.1f}"
+    if abs(value) < 1:
+        return f"{value:.3f}"
+    return f"{value:.2f}" if abs(value) < 10 else f"{value:.1f}"
 
 
 def metrics_table(metrics: dict[str, float]) -> str:
