@@ -114,12 +114,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         num_samples=args.samples,
         num_displayed=args.meshes,
     )
-    print(f"hkpd explorer running at {app.url}  (Ctrl-C to stop)", flush=True)
-    if not args.no_browser:
-        webbrowser.open(app.url)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    try:
+    try:  # from here on Ctrl-C stops the server cleanly, even while the banner is printed
+        print(f"hkpd explorer running at {app.url}  (Ctrl-C to stop)", flush=True)
+        if not args.no_browser:
+            webbrowser.open(app.url)
         while not stop.wait(0.5):
             pass
     except KeyboardInterrupt:
