@@ -114,16 +114,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         num_samples=args.samples,
         num_displayed=args.meshes,
     )
+    # Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (even inside the
+    # banner's print) cannot interrupt half-done work; a second Ctrl-C while stopping does.
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    try:  # from here on Ctrl-C stops the server cleanly, even while the banner is printed
-        print(f"hkpd explorer running at {app.url}  (Ctrl-C to stop)", flush=True)
-        if not args.no_browser:
-            webbrowser.open(app.url)
-        while not stop.wait(0.5):
-            pass
-    except KeyboardInterrupt:
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    print(f"hkpd explorer running at {app.url}  (Ctrl-C to stop)", flush=True)
+    if not args.no_browser:
+        webbrowser.open(app.url)
+    while not stop.wait(0.5):
         pass
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     print("stopping…", flush=True)
     app.stop()
     return 0
