@@ -24,7 +24,6 @@ For synthetic test images with one limb covered (the occlusion-response protocol
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -138,13 +137,12 @@ def main() -> None:
                 angles.setdefault((view, f"{joint} mode error"), []).append(error)
                 angles.setdefault((view, f"{joint} sample spread"), []).append(spread)
         clean_spread = spreads[("clean", "all joints")][-1]
+        covered_pose = outputs["covered"].pose_distribution()
         for factor in CONCENTRATION_FACTORS:
-            F = outputs["covered"].F.clone()
-            F[:, own_joints] *= factor
-            scaled = replace(outputs["covered"], F=F)
+            scaled = covered_pose.scale_concentration(own_joints, factor)
             random = torch.Generator().manual_seed(batch_index)
-            samples = scaled.pose_distribution().sample(args.samples, generator=random)
-            covered_spread = limb_spread(scaled, samples, body, mask)
+            samples = scaled.sample(args.samples, generator=random)
+            covered_spread = limb_spread(outputs["covered"], samples, body, mask)
             scaled_ratios.setdefault(factor, []).append(covered_spread / clean_spread)
 
     count = len(torch.cat(spreads[("clean", "all joints")]))

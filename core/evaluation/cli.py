@@ -158,7 +158,7 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
     report = []
     if not arguments.no_synthetic:
         rows = {
-            _row_name(checkpoint, factor, arguments): evaluate_synthetic(
+            _row_name(checkpoint, factor, arguments.concentration_scale): evaluate_synthetic(
                 checkpoint, arguments.poses, arguments.count, arguments.samples, device, factor
             )
             for checkpoint in arguments.checkpoints
@@ -194,7 +194,7 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
         )
     if arguments.occlusion_cases > 0:
         rows = {
-            _row_name(checkpoint, factor, arguments): occlusion_summary(
+            _row_name(checkpoint, factor, arguments.concentration_scale): occlusion_summary(
                 checkpoint, arguments.poses, arguments.occlusion_cases, device, factor
             )
             for checkpoint in arguments.checkpoints
@@ -208,9 +208,9 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
     return "\n".join(report)
 
 
-def _row_name(checkpoint: Path, factor: float, arguments: argparse.Namespace) -> str:
+def _row_name(checkpoint: Path, factor: float, scales: list[float]) -> str:
     """The checkpoint, plus its concentration scale when more than "as trained" is asked for."""
-    if arguments.concentration_scale == [1.0]:
+    if scales == [1.0]:
         return str(checkpoint)
     return f"{checkpoint} (F x {factor:g})"
 

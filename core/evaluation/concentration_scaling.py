@@ -4,7 +4,9 @@ sharper or wider.
 Multiplying every matrix-Fisher parameter ``F_i`` by a factor ``t > 0`` keeps each joint's mode
 (the proper SVD's ``U V^T`` does not change) and scales its concentration: ``t = 0.25`` roughly
 doubles the angular spread of the samples, ``t = 4`` halves it. This is temperature scaling for
-rotations; the explorer's "All joints" slider applies the same factor (``10 ** slider``). It lets
+rotations, the same as :meth:`KinematicMatrixFisher.scale_concentration` on all 23 joints, which
+the explorer's "All joints" slider applies (``10 ** slider``); here it acts on the network's
+output, so every evaluation downstream sees the scaled F. It lets
 ``hkpd-eval`` measure the trade-off between the samples' 2D error and calibration for a trained
 model without retraining it.
 """
