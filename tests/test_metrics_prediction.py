@@ -66,6 +66,11 @@ def test_broad_distributions_are_diverse_and_min_of_n_decreases(body, case):
         assert (metrics[f"{name}_min_of_5"] <= metrics[f"{name}_min_of_1"]).all()
         assert (metrics[f"{name}_min_of_5"] < metrics[f"{name}_min_of_1"]).any()
     assert (metrics["joint_error_2d_samples"] > metrics["joint_error_2d_mode"]).all()
+    # The mode sits on the targets, so the samples' spread about it is their error
+    # (up to the mode's own error, by the triangle inequality), and it is not small.
+    spread, error = metrics["joint_spread_2d_samples"], metrics["joint_error_2d_samples"]
+    assert (spread - error).abs().max() <= metrics["joint_error_2d_mode"].max() + 1e-4
+    assert spread.min() > 3.0  # px
 
 
 def test_missing_targets_skip_their_metrics(body, case):
@@ -88,3 +93,25 @@ def test_pose_coverage_needs_the_true_pose_and_is_full_at_a_sharp_correct_mode(b
     assert "pose_coverage_50" not in evaluate_prediction(
         prediction(batch, camera, 1e4, 1e-4), body, targets, 8
     )
+
+
+def test_synthetic_evaluation_reports_2d_metrics_at_a_256_crop(body, case):
+    from hkpd.evaluation.synthetic import evaluate_batches
+
+    batch, camera, _ = case
+    size = batch.proxy.shape[-1]
+    output = prediction(batch, camera, 5.0, 0.3)
+
+    class FixedNetwork(torch.nn.Module):
+        def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+            return output
+
+    reported = evaluate_batches(FixedNetwork(), [batch], body, num_samples=4, seed=3)
+    targets = EvaluationTargets(
+        batch.joints3d, batch.betas, batch.keypoints2d, batch.visible, batch.body_pose
+    )
+    direct = evaluate_prediction(output, body, targets, 4, size, torch.Generator().manual_seed(3))
+    for name in ("joint_error_2d_mode", "joint_error_2d_samples", "joint_spread_2d_samples"):
+        assert reported[name] == pytest.approx(float(direct[name].mean()) * 256 / size, rel=1e-5)
+    assert reported["joint_spread_2d_samples"] > 1.0  # px: broad samples do spread
+    assert reported["mpjpe"] == pytest.approx(float(direct["mpjpe"].mean()) * 1000, rel=1e-5)

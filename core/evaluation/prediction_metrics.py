@@ -78,7 +78,10 @@ def evaluate_prediction(
     Returns:
         ``{name: (B,)}``, 3D metrics in metres, 2D errors in pixels, with names
         ``mpjpe``, ``mpjpe_sc``, ``mpjpe_pa``, ``pve_t_sc``, ``joint_error_2d_mode``,
-        ``joint_error_2d_samples``, ``{mpjpe,mpjpe_pa,pve_t_sc}_min_of_{N}``,
+        ``joint_error_2d_samples``, ``joint_spread_2d_samples`` (the samples' mean 2D
+        distance from the mode's keypoints, on the visible joints: with Gaussian-like errors a
+        calibrated model has ``samples error ≈ sqrt(mode error² + spread²)``),
+        ``{mpjpe,mpjpe_pa,pve_t_sc}_min_of_{N}``,
         ``diversity_visible`` and ``diversity_invisible`` (3D COCO keypoint spread), and
         ``pose_coverage_{50,90}`` (share of joints whose true rotation lies in the 50% / 90%
         most probable region, ranked among the S samples; needs ``targets.body_pose``).
@@ -137,6 +140,9 @@ def evaluate_prediction(
         projected = torch.stack([to_pixels(points) for points in first])
         results["joint_error_2d_samples"] = joint_error_2d(
             projected, targets.keypoints2d, targets.visible
+        )
+        results["joint_spread_2d_samples"] = joint_error_2d(
+            projected, to_pixels(keypoints), targets.visible
         )
     visible = (
         targets.visible.bool()

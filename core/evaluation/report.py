@@ -11,6 +11,7 @@ METRIC_LABELS: dict[str, str] = {
     "pve_t_sc": "PVE-T-SC (mm)",
     "joint_error_2d_mode": "2D joint err. mode (px)",
     "joint_error_2d_samples": "2D joint err. samples (px)",
+    "joint_spread_2d_samples": "2D sample spread about the mode (px)",
     "diversity_visible": "sample spread, visible joints (mm)",
     "diversity_invisible": "sample spread, invisible joints (mm)",
     "joint_error_2d_mode_box_fraction": "2D joint err. mode (box fraction)",

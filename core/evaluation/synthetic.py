@@ -60,7 +60,7 @@ def evaluate_batches(
         size = batch.proxy.shape[-1]
         results = evaluate_prediction(output, body, targets, num_samples, size, generator)
         for name, values in results.items():
-            if name.startswith("joint_error_2d"):
+            if name.startswith(("joint_error_2d", "joint_spread_2d")):
                 values = values * (CROP_SIZE / size)  # pixels at a 256 crop, whatever the size
             finite = values[torch.isfinite(values)]
             sums[name] = sums.get(name, 0.0) + float(finite.sum())
