@@ -22,7 +22,7 @@ For synthetic test images with one limb covered (the occlusion-response protocol
    own fitted factors. A diagnosis fitted on the images it reports, not a recipe.
 
     python docs/diagnose_limb_uncertainty.py --model assets/models/hkpd_hierarchical.pt \\
-        --poses poses.npz --limb left_forearm
+        --poses poses.npz --limb left_forearm [--split val]
 """
 
 from __future__ import annotations
@@ -99,7 +99,13 @@ def main() -> None:
     parser.add_argument("--model", type=Path, default=Path("assets/models/hkpd_hierarchical.pt"))
     parser.add_argument("--poses", type=Path, help="pose bank (test split); else procedural")
     parser.add_argument("--limb", choices=OCCLUDED_LIMBS, default="left_forearm")
-    parser.add_argument("--batches", type=int, default=4, help="batches of 16 test images")
+    parser.add_argument("--batches", type=int, default=4, help="batches of 16 images")
+    parser.add_argument(
+        "--split",
+        choices=("test", "val"),
+        default="test",
+        help="the pose bank's subjects to render: test (hkpd-eval's) or val (more varied motion)",
+    )
     parser.add_argument("--samples", type=int, default=50)
     args = parser.parse_args()
     torch.set_grad_enabled(False)
@@ -109,7 +115,8 @@ def main() -> None:
         image_size=int(network.config.image_size), augmentation=AugmentationConfig.disabled()
     )
     body = BodyModel()
-    generator = SyntheticDataGenerator(pose_source(args.poses, "test"), config, "cpu", body=body)
+    poses = pose_source(args.poses, args.split)
+    generator = SyntheticDataGenerator(poses, config, "cpu", body=body)
     mask = limb_vertex_masks(body)[args.limb]
     side, kind = args.limb.split("_", 1)
     lower_joint = f"{side}_elbow" if kind == "forearm" else f"{side}_knee"
@@ -169,7 +176,7 @@ def main() -> None:
             scaled_ratios.setdefault(factor, []).append(covered_spread / clean_spread)
 
     count = len(torch.cat(spreads[("clean", "all joints")]))
-    print(f"{args.limb}, {count} test images, {args.samples} samples, model {args.model}\n")
+    print(f"{args.limb}, {count} {args.split} images, {args.samples} samples, model {args.model}\n")
     print("| sampled joints | clean (cm) | covered (cm) |\n|---|---|---|")
     for joint in [*chain, "all joints"]:
         clean, hidden = (
