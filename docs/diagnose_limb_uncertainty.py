@@ -97,7 +97,7 @@ def likelihood_factors(F: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--model", type=Path, default=Path("assets/models/hkpd_hierarchical.pt"))
-    parser.add_argument("--poses", type=Path, help="pose bank (test split); else procedural")
+    parser.add_argument("--poses", type=Path, help="pose bank (--split picks subjects)")
     parser.add_argument("--limb", choices=OCCLUDED_LIMBS, default="left_forearm")
     parser.add_argument("--batches", type=int, default=4, help="batches of 16 images")
     parser.add_argument(
