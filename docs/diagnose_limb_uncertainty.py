@@ -206,10 +206,10 @@ def main() -> None:
         for view, outs in predicted.items()
     }
     spread_fitted: dict[str, list[torch.Tensor]] = {"clean": [], "covered": []}
+    every_joint = torch.ones(len(BODY_PARENTS), dtype=torch.bool)
     for view, outs in predicted.items():
         for batch_index, output in enumerate(outs):
             factor = fitted[view].expand(len(output.F), -1)
-            every_joint = torch.ones(len(BODY_PARENTS), dtype=torch.bool)
             scaled = output.pose_distribution().scale_concentration(every_joint, factor)
             random = torch.Generator().manual_seed(batch_index)
             samples = scaled.sample(args.samples, generator=random)

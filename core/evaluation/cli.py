@@ -22,6 +22,7 @@ from pathlib import Path
 
 import torch
 
+from hkpd.evaluation.concentration_scaling import ConcentrationScaled
 from hkpd.evaluation.report import markdown_table
 
 SYNTHETIC_COLUMNS = [
@@ -86,15 +87,6 @@ def _network_and_test_generator(
     return network, generator
 
 
-def _scaled(network: torch.nn.Module, concentration_scale: float) -> torch.nn.Module:
-    """The network itself at scale 1, else wrapped to multiply its F by the scale."""
-    if concentration_scale == 1.0:
-        return network
-    from hkpd.evaluation.concentration_scaling import ConcentrationScaled
-
-    return ConcentrationScaled(network, concentration_scale)
-
-
 def evaluate_synthetic(
     checkpoint: Path,
     poses: Path | None,
@@ -109,7 +101,7 @@ def evaluate_synthetic(
     from hkpd.synthesis.generator import iter_fixed_test_set
 
     network, generator = _network_and_test_generator(checkpoint, poses, device)
-    network = _scaled(network, concentration_scale)
+    network = ConcentrationScaled(network, concentration_scale)
     batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
     size = generator.config.image_size
     return evaluate_batches(network, batches, generator.body, samples) | {"image_size": size}
@@ -226,7 +218,8 @@ def occlusion_summary(
     network, generator = _network_and_test_generator(
         checkpoint, poses, device, AugmentationConfig.disabled()
     )
-    return summarise(occlusion_response(_scaled(network, concentration_scale), generator, cases))
+    scaled = ConcentrationScaled(network, concentration_scale)
+    return summarise(occlusion_response(scaled, generator, cases))
 
 
 if __name__ == "__main__":
