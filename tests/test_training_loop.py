@@ -154,3 +154,24 @@ def test_learning_rate_is_constant_or_decays_along_a_half_cosine(run, tmp_path) 
     assert parsed.final_learning_rate == 3e-5
     with pytest.raises(ValueError, match="final-learning-rate"):
         train(TrainConfig(out=tmp_path, final_learning_rate=0.0, **TINY), show_progress=False)
+
+
+def test_every_flag_has_its_documented_description_and_default() -> None:
+    import dataclasses
+
+    from hkpd.training.config import field_descriptions
+
+    descriptions = field_descriptions()
+    assert set(descriptions) == {f.name for f in dataclasses.fields(TrainConfig)}
+    assert descriptions["steps"] == "optimiser steps in total."
+    # reST roles are reduced to plain names and continuation lines joined.
+    assert (
+        "hkpd.synthesis.augmentations.limb_occlusion_boxes"
+        in descriptions["limb_occlusion_probability"]
+    )
+    assert ":func:" not in descriptions["limb_occlusion_probability"]
+    assert "\n" not in descriptions["init_weights"]
+    actions = {action.dest: action for action in build_parser()._actions}
+    help_text = actions["learning_rate"].help
+    assert help_text.startswith("Adam learning rate") and help_text.endswith("(default: 0.0001)")
+    build_parser().format_help()  # every help string survives argparse's % formatting

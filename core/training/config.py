@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import inspect
 import json
 import math
+import re
 import types
 import typing
 from dataclasses import dataclass
@@ -137,14 +139,47 @@ def _members(hint) -> tuple:
     return (hint,)
 
 
+def field_descriptions() -> dict[str, str]:
+    """``{field: description}`` from the "Attributes:" section of :class:`TrainConfig`'s docstring.
+
+    Continuation lines are joined with single spaces and reST markup (``:func:`x```, double
+    back-quotes) is reduced to plain text, so the result reads well in ``--help``.
+    """
+    doc = inspect.getdoc(TrainConfig) or ""
+    _, _, attributes = doc.partition("Attributes:")
+    descriptions: dict[str, list[str]] = {}
+    current: list[str] | None = None
+    for line in attributes.splitlines():
+        entry = _ATTRIBUTE_LINE.match(line)
+        if entry:
+            current = descriptions.setdefault(entry["name"], [])
+            current.append(entry["text"])
+        elif current is not None and line.strip():
+            current.append(line.strip())
+    return {name: _plain_text(" ".join(parts)) for name, parts in descriptions.items()}
+
+
+_ATTRIBUTE_LINE = re.compile(r"^    (?P<name>[a-z_][a-z0-9_]*): (?P<text>.*)$")
+
+
+def _plain_text(text: str) -> str:
+    text = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text)  # :func:`name` -> name
+    return text.replace("``", "").replace("%", "%%")  # argparse formats help with %
+
+
 def add_config_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add one ``--flag`` per :class:`TrainConfig` field (default: not given)."""
+    """Add one ``--flag`` per :class:`TrainConfig` field (default: not given).
+
+    Each flag's help is the field's documented description followed by its default.
+    """
     hints = typing.get_type_hints(TrainConfig)
+    descriptions = field_descriptions()
     for field in dataclasses.fields(TrainConfig):
         flag = "--" + field.name.replace("_", "-")
         members = [m for m in _members(hints[field.name]) if m is not type(None)]
         kind = members[0]
-        help_text = f"default: {field.default}"
+        description = descriptions.get(field.name, "").rstrip(".")
+        help_text = f"{description} (default: {field.default})".strip()
         if kind is bool:
             parser.add_argument(flag, action=argparse.BooleanOptionalAction, help=help_text)
         else:
