@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 import torch
 
 from hkpd.evaluation.cli import main as eval_main
@@ -71,6 +72,26 @@ def test_occlusion_response_runs_and_covers_the_limb() -> None:
     assert all(len(case.other_changes) == 3 for case in cases)
     summary = summarise(cases)
     assert summary["cases"] == 4 and 0 <= summary["fraction_ratio_at_least_1.5"] <= 1
+    forearms = [case.ratio for case in cases if case.limb.endswith("forearm")]
+    lower_legs = [case.ratio for case in cases if case.limb.endswith("lower_leg")]
+    assert summary["occluded_ratio_median_forearms"] == pytest.approx(np.median(forearms))
+    assert summary["occluded_ratio_median_lower_legs"] == pytest.approx(np.median(lower_legs))
+
+
+def test_occlusion_summary_splits_forearms_from_lower_legs() -> None:
+    from hkpd.evaluation.occlusion_response import OcclusionCase, summarise
+
+    cases = [
+        OcclusionCase("left_forearm", 1.1, [0.0] * 3),
+        OcclusionCase("right_forearm", 1.3, [0.0] * 3),
+        OcclusionCase("left_lower_leg", 2.0, [0.1] * 3),
+    ]
+    summary = summarise(cases)
+    assert summary["occluded_ratio_median"] == pytest.approx(1.3)
+    assert summary["occluded_ratio_median_forearms"] == pytest.approx(1.2)
+    assert summary["occluded_ratio_median_lower_legs"] == pytest.approx(2.0)
+    only_legs = summarise(cases[2:])
+    assert np.isnan(only_legs["occluded_ratio_median_forearms"])
 
 
 class _FixedPosterior:

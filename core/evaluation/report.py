@@ -24,6 +24,8 @@ METRIC_LABELS: dict[str, str] = {
     "occluded_ratio_median": "hidden limb: uncertainty ratio, median",
     "occluded_ratio_q25": "ratio, 25th pct",
     "occluded_ratio_q75": "ratio, 75th pct",
+    "occluded_ratio_median_forearms": "ratio median, forearms",
+    "occluded_ratio_median_lower_legs": "ratio median, lower legs",
     "fraction_ratio_at_least_1.5": "share with ratio >= 1.5",
     "other_limbs_change_median": "other limbs: median abs(ratio - 1)",
     "fraction_other_limbs_within_20pct": "other limbs: share within 20%",
