@@ -175,3 +175,25 @@ def test_every_flag_has_its_documented_description_and_default() -> None:
     help_text = actions["learning_rate"].help
     assert help_text.startswith("Adam learning rate") and help_text.endswith("(default: 0.0001)")
     build_parser().format_help()  # every help string survives argparse's % formatting
+
+
+def test_max_minutes_stops_with_a_checkpoint_that_resume_continues(tmp_path, capsys) -> None:
+    config = TrainConfig(out=tmp_path / "timed", steps=1000, max_minutes=1e-6, **TINY)
+    result = train(config, show_progress=False)
+    assert result.out_of_time and not result.interrupted
+    assert 1 <= result.steps < 1000  # stopped by the clock, not the step count
+    _, payload = load_network(result.checkpoint)
+    assert payload["step"] == result.steps
+    resumed = train(
+        TrainConfig(**{**vars(config), "steps": result.steps + 3, "max_minutes": None}),
+        resume=True,
+        show_progress=False,
+    )
+    assert resumed.steps == result.steps + 3 and not resumed.out_of_time
+    out = str(tmp_path / "cli")
+    flags = ["--out", out, "--steps", "50", "--max-minutes", "1e-6", "--quiet"]
+    flags += [f"--{k.replace('_', '-')}={v}" for k, v in TINY.items()]
+    assert train_main(flags) == 0
+    assert "stopped at --max-minutes 1e-06" in capsys.readouterr().out
+    assert train_main(["--out", out, "--max-minutes", "0"]) == 2
+    assert "--max-minutes must be positive" in capsys.readouterr().err

@@ -5,6 +5,7 @@ Examples::
     hkpd-train --out runs/demo --steps 200 --image-size 128 --backbone-base-width 16
     hkpd-train --poses poses.npz --backgrounds ~/lsun --out runs/full
     hkpd-train --out runs/full --resume          # continue where it stopped
+    hkpd-train --out runs/full --resume --max-minutes 8   # train for 8 minutes, then checkpoint
 """
 
 from __future__ import annotations
@@ -49,6 +50,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"hkpd-train: error: {error}", file=sys.stderr)
         return 2
     state = "interrupted" if result.interrupted else "finished"
+    if result.out_of_time:
+        state = f"stopped at --max-minutes {config.max_minutes:g}"
     print(
         f"{state}: {result.steps} steps, {result.samples_seen} samples in "
         f"{result.seconds / 60:.1f} min; checkpoint {result.checkpoint}; curves "

@@ -64,6 +64,10 @@ class TrainConfig:
         data_workers: CPU only: make batches in this many single-threaded worker processes
             (:class:`hkpd.synthesis.parallel.ParallelBatches`); 0 makes them in a background
             thread of the training process.
+        max_minutes: stop after this many minutes of training steps (setup and the final
+            validation come on top), with a checkpoint that ``--resume`` continues, e.g. on a
+            machine lent for a fixed time; None runs all ``steps``. The learning-rate schedule
+            still follows ``steps``.
     """
 
     out: Path = Path("runs/hkpd")
@@ -92,6 +96,7 @@ class TrainConfig:
     init_weights: Path | None = None
     concentration_gain: bool = False
     limb_occlusion_probability: float = 0.0
+    max_minutes: float | None = None
 
     def to_dict(self) -> dict:
         """Plain JSON-able values (paths as strings)."""

@@ -55,6 +55,7 @@ class TrainingResult:
     seconds: float
     last_validation: dict[str, float]
     interrupted: bool = False
+    out_of_time: bool = False
 
 
 def build_schedule(config: TrainConfig, weights: LossWeights | None = None) -> LossSchedule:
@@ -160,7 +161,7 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
     """
     from hkpd.evaluation.synthetic import evaluate_batches
 
-    for name in ("learning_rate", "final_learning_rate"):
+    for name in ("learning_rate", "final_learning_rate", "max_minutes"):
         value = getattr(config, name)
         if value is not None and not value > 0:
             raise ValueError(f"--{name.replace('_', '-')} must be positive, got {value}")
@@ -247,7 +248,8 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
     _stop_on_sigterm()
     started = time.perf_counter()
     window_start, window_samples = started, 0
-    interrupted = False
+    interrupted = out_of_time = False
+    deadline = None if config.max_minutes is None else started + 60.0 * config.max_minutes
     progress = tqdm(
         total=config.steps, initial=step, disable=not show_progress, unit="step", dynamic_ncols=True
     )
@@ -299,6 +301,13 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
                 progress.write(f"step {step}: " + _format_metrics(last_validation))
             if step % config.checkpoint_every == 0:
                 save()
+            if deadline is not None and step < config.steps and time.perf_counter() >= deadline:
+                out_of_time = True
+                progress.write(
+                    f"--max-minutes {config.max_minutes:g} reached at step {step}; saving "
+                    f"{checkpoint_path} (continue with --resume)"
+                )
+                break
     except KeyboardInterrupt:
         interrupted = True
         progress.write(f"interrupted at step {step}; saving {checkpoint_path}")
@@ -314,7 +323,7 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         board.close()
     return TrainingResult(
         checkpoint_path, step, samples_seen, time.perf_counter() - started, last_validation,
-        interrupted,
+        interrupted, out_of_time,
     )  # fmt: skip
 
 
