@@ -21,6 +21,7 @@
 #   HKPD_BENCH            1 (default) runs the synthesis benchmark first, 0 skips it
 #   HKPD_EVAL_COUNT       synthetic test examples for the closing evaluation (default 1000)
 #   PYTHON                the interpreter (default python3)
+# The run itself goes to runs/gpu_session/, which each call starts afresh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/gpu_session_out}

@@ -185,19 +185,17 @@ def summarise(results: list[OcclusionCase]) -> dict[str, float]:
     apart: NaN for a kind with no case); median change of the other limbs."""
     ratios = np.array([case.ratio for case in results])
     others = np.array([change for case in results for change in case.other_changes])
-    by_kind = {
-        kind: [case.ratio for case in results if case.limb.endswith(kind)]
-        for kind in ("forearm", "lower_leg")
-    }
+    forearms = [case.ratio for case in results if case.limb.endswith("forearm")]
+    lower_legs = [case.ratio for case in results if case.limb.endswith("lower_leg")]
     return {
         "cases": float(len(results)),
         "occluded_ratio_median": float(np.median(ratios)),
         "occluded_ratio_q25": float(np.quantile(ratios, 0.25)),
         "occluded_ratio_q75": float(np.quantile(ratios, 0.75)),
-        **{
-            f"occluded_ratio_median_{kind}s": float(np.median(values)) if values else math.nan
-            for kind, values in by_kind.items()
-        },
+        "occluded_ratio_median_forearms": float(np.median(forearms)) if forearms else math.nan,
+        "occluded_ratio_median_lower_legs": float(np.median(lower_legs))
+        if lower_legs
+        else math.nan,
         "fraction_ratio_at_least_1.5": float((ratios >= 1.5).mean()),
         "other_limbs_change_median": float(np.median(others)),
         "fraction_other_limbs_within_20pct": float((others <= 0.2).mean()),

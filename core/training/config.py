@@ -144,6 +144,10 @@ def _members(hint) -> tuple:
     return (hint,)
 
 
+_ATTRIBUTE_LINE = re.compile(r"^    (?P<name>[a-z_][a-z0-9_]*): (?P<text>.*)$")
+"""One ``name: text`` entry of a Google-style Attributes section (continuations are deeper)."""
+
+
 def field_descriptions() -> dict[str, str]:
     """``{field: description}`` from the "Attributes:" section of :class:`TrainConfig`'s docstring.
 
@@ -162,9 +166,6 @@ def field_descriptions() -> dict[str, str]:
         elif current is not None and line.strip():
             current.append(line.strip())
     return {name: _plain_text(" ".join(parts)) for name, parts in descriptions.items()}
-
-
-_ATTRIBUTE_LINE = re.compile(r"^    (?P<name>[a-z_][a-z0-9_]*): (?P<text>.*)$")
 
 
 def _plain_text(text: str) -> str:
