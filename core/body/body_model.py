@@ -221,6 +221,52 @@ class BodyModel(torch.nn.Module):
         joints = posed_joints if transl is None else posed_joints + transl.unsqueeze(1)
         return BodyOutput(vertices=vertices, joints=joints, keypoints=keypoints)
 
+    def posed_keypoints(
+        self,
+        betas: torch.Tensor,
+        body_pose: torch.Tensor,
+        global_orient: torch.Tensor | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """COCO keypoints and joints of the posed body, without computing its vertices.
+
+        The keypoint regressor is folded through the skinning (see
+        :mod:`hkpd.body.linear_blend_skinning`), so this costs a few small products per body:
+        what a fit to 2D keypoints evaluates many times. Same arguments and conventions as
+        :meth:`forward` (no ``transl``); differentiable, also under ``torch.func`` transforms.
+
+        Returns:
+            ``keypoints (B, 17, 3)`` and ``joints (B, 24, 3)``, metres.
+
+        Raises:
+            ValueError: the asset has no keypoint regressor (SMPL files).
+        """
+        if self.keypoint_regressor is None:
+            raise ValueError(
+                "this body model has no COCO keypoint regressor (SMPL files do not carry one)"
+            )
+        betas = self._check_betas(betas)
+        batch = betas.shape[0]
+        body_joints = self.num_joints - 1
+        self._check_tensor("body_pose", body_pose, (batch, body_joints, 3, 3))
+        eye = torch.eye(3, dtype=self.dtype, device=self.device)
+        if global_orient is None:
+            global_orient = eye.expand(batch, 3, 3)
+        self._check_tensor("global_orient", global_orient, (batch, 3, 3))
+        runtime = self._runtime_arrays()
+        rest_joints = self.rest_joints(betas)
+        rotations = torch.cat((global_orient.unsqueeze(1), body_pose), dim=1)
+        global_rotations, posed_joints = forward_kinematics(
+            rest_joints, rotations, self.parents, runtime.ancestors
+        )
+        transforms = skinning_transforms(global_rotations, posed_joints, rest_joints)
+        coefficients = betas
+        if self.posedirs is not None:
+            pose_features = (body_pose - eye).reshape(batch, body_joints * 9)
+            coefficients = torch.cat((betas, pose_features), dim=1)
+        assert runtime.keypoints is not None  # the regressor exists (checked above)
+        keypoints = apply_skinned_readout(runtime.keypoints, coefficients, transforms)
+        return keypoints, posed_joints
+
     # --- helpers ----------------------------------------------------------------------------
 
     def _check_tensor(self, name: str, value: torch.Tensor, shape: tuple[int, ...]) -> None:

@@ -92,7 +92,7 @@ def _errors(
 
 def evaluate_photos(
     predictor, people: list[AnnotatedPerson], num_samples: int = 10, seed: int = 0,
-    show_progress: bool = True,
+    show_progress: bool = True, evidence: bool = False,
 ) -> dict[str, float]:  # fmt: skip
     """Mean 2D errors of the mode and of samples over ``people``.
 
@@ -100,6 +100,7 @@ def evaluate_photos(
         predictor: a :class:`hkpd.prediction.Predictor`.
         people: from :func:`load_coco_people`.
         num_samples: bodies sampled per person for the samples' error.
+        evidence: score the keypoint-evidence posterior instead of the network's own.
 
     Returns:
         ``joint_error_2d_mode`` / ``joint_error_2d_samples`` (px at a 256 crop),
@@ -115,7 +116,7 @@ def evaluate_photos(
         margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
         search = person.bbox + np.array([-margin, -margin, margin, margin])
         try:
-            posterior = predictor.predict(person.image_path, bbox=search)
+            posterior = predictor.predict(person.image_path, bbox=search, evidence=evidence)
         except (NoPersonFoundError, ImageInputError, ValueError):
             failed += 1
             continue

@@ -19,9 +19,10 @@ from PIL import Image
 
 from hkpd.camera_conventions import CROP_SIZE
 from hkpd.prediction.crop import CropTransform
+from hkpd.prediction.evidence_rule import evidence_mask
 from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
 from hkpd.prediction.keypoint_detector import KeypointDetection, KeypointDetector
-from hkpd.prediction.occluders import apply_occluders, points_under_boxes
+from hkpd.prediction.occluders import apply_occluders
 from hkpd.proxy import build_proxy
 
 
@@ -36,8 +37,10 @@ class NetworkInput:
         crop: the square crop (original-photo pixels <-> crop pixels).
         crop_rgb: ``(S, S, 3)`` uint8 RGB crop the edges were taken from (occluders painted).
         keypoints_crop: ``(17, 2)`` detected keypoints in crop pixels.
-        confidences: ``(17,)`` detector confidences, zeroed for keypoints under an occluder.
-        detection: the detector's raw result (original-photo pixels, confidences untouched).
+        confidences: ``(17,)`` detector confidences, zeroed where the keypoint is not evidence
+            (below the threshold or under an occluder).
+        detection: the detector's raw result on the unpainted photo (original-photo pixels,
+            confidences untouched).
         image: the photo as loaded, occluders painted.
     """
 
@@ -61,9 +64,12 @@ def prepare_network_input(
 ) -> NetworkInput:
     """Load a photo, paint occluders, detect the person, crop, and build the proxy.
 
-    Occluders are painted BEFORE detection and edge extraction, and keypoints that land under
-    one get confidence 0: a hidden joint cannot have been seen, although BlazePose still
-    places it, sometimes with a visibility above the proxy's threshold.
+    The detector runs on the *unpainted* photo; occluders are then painted before edge
+    extraction, and the keypoints that are not evidence
+    (:func:`hkpd.prediction.evidence_rule.evidence_mask`: below the confidence threshold or
+    under an occluder) get confidence 0, so the heatmaps show exactly the evidence. (Detecting
+    on the painted photo let BlazePose put confident keypoints just outside a box.) Without
+    occluders nothing changes.
 
     Args:
         image: anything :func:`load_image` accepts.
@@ -82,13 +88,12 @@ def prepare_network_input(
         ValueError: malformed ``bbox`` or occluder boxes, or keypoints too degenerate to crop.
     """
     loaded = load_image(image, max_side=max_side)
-    boxes = np.asarray(occluders, dtype=np.float64)
+    boxes = np.asarray(occluders, dtype=np.float64).reshape(-1, 4)
+    detection = detector.detect(loaded, bbox=bbox)  # the unpainted photo (see the docstring)
     if boxes.size:
         loaded = apply_occluders(loaded, boxes)
-    detection = detector.detect(loaded, bbox=bbox)
-    confidences = np.where(
-        points_under_boxes(detection.keypoints, boxes), 0.0, detection.confidences
-    )
+    evidence = evidence_mask(detection.keypoints, detection.confidences, boxes)
+    confidences = np.where(evidence, detection.confidences, 0.0)
     crop = CropTransform.from_keypoints(
         detection.keypoints,
         detection.confidences,

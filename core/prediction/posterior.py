@@ -12,7 +12,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import torch
 
@@ -21,6 +21,13 @@ from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS, body_joint_index
 from hkpd.uncertainty import vertex_uncertainty
+
+if TYPE_CHECKING:
+    from hkpd.conditioning import KeypointFit
+
+PosteriorSource = Literal["network", "evidence"]
+"""Where a posterior's distribution comes from: the network alone (the paper's method), or the
+network's distribution conditioned on the photo's 2D keypoints (``docs/evidence.md``)."""
 
 
 class CropToImage(Protocol):
@@ -72,6 +79,14 @@ class BodyPosterior:
         body: the body model used to turn parameters into meshes.
         network_input: what the network saw (proxy, crop, detection), when the posterior came
             from a photo through :class:`hkpd.prediction.Predictor`.
+        source: ``"evidence"`` when the distribution is conditioned on the 2D keypoints,
+            ``"network"`` for the network's own.
+        prior: for an evidence posterior, the network's posterior it updated (same crop), so
+            the two can be compared; None otherwise.
+        evidence_fit: the keypoint fit's report (iterations, cost, robust weights, time), or
+            why it fell back (``evidence_fit.reason``); None when no fit was asked for.
+        evidence: ``(17,)`` bool, the keypoints that counted as evidence (confident and not
+            under an occluder); None when unknown.
     """
 
     F: torch.Tensor
@@ -84,6 +99,22 @@ class BodyPosterior:
     confidences: torch.Tensor
     body: BodyModel
     network_input: Any = None
+    source: PosteriorSource = "network"
+    prior: BodyPosterior | None = None
+    evidence_fit: KeypointFit | None = None
+    evidence: torch.Tensor | None = None
+
+    @property
+    def conditioned(self) -> bool:
+        """True when the distribution is conditioned on the photo's keypoints."""
+        return self.source == "evidence"
+
+    @property
+    def fallback_reason(self) -> str | None:
+        """Why an evidence posterior was asked for but the network's is returned (else None)."""
+        if self.evidence_fit is None or self.conditioned:
+            return None
+        return self.evidence_fit.reason or "the keypoint fit failed"
 
     @functools.cached_property
     def pose_distribution(self) -> KinematicMatrixFisher:

@@ -1,17 +1,23 @@
 """``Predictor``: a photo in, a :class:`BodyPosterior` out.
 
-``predict`` runs the front end (:func:`prepare_network_input`: load, paint occluders, detect
-2D keypoints with BlazePose, crop, build the proxy) and the distribution-prediction network,
-and wraps the result in a :class:`BodyPosterior` that samples bodies and maps them back to the
-photo.
+``predict`` runs the front end (:func:`prepare_network_input`: load, detect 2D keypoints with
+BlazePose, paint occluders, crop, build the proxy) and the distribution-prediction network.
+By default it then conditions the network's distribution on the detected keypoints
+(:func:`hkpd.conditioning.condition_on_keypoints`; ``docs/evidence.md``): the network's
+distribution is the prior, the confident keypoints that no occluder covers are the evidence.
+When the torso leans more than ``EvidenceConfig.upright_start_degrees``, the network also reads
+a copy of the crop turned upright (:mod:`hkpd.prediction.upright_view`) and the fit starts from
+both answers. ``evidence=False`` returns the network's own distribution (the paper's method).
 """
 
 from __future__ import annotations
 
+import copy
 import importlib.resources
 import os
 import threading
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,11 +25,15 @@ import torch
 from PIL import Image
 
 from hkpd.body import BodyModel
+from hkpd.conditioning import BodyEstimate, EvidenceConfig, KeypointEvidence, condition_on_keypoints
 from hkpd.devices import resolve_device
+from hkpd.network.output import NetworkOutput
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
-from hkpd.prediction.network_input import prepare_network_input
+from hkpd.prediction.network_input import NetworkInput, prepare_network_input
 from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.upright_view import UprightView, torso_tilt
+from hkpd.proxy import build_proxy
 from hkpd.training.checkpoint import load_network
 
 SHIPPED_MODEL = ("models", "hkpd_hierarchical.pt")
@@ -53,6 +63,7 @@ class Predictor:
         device: where the network and body model run.
         body: the body model (default: the shipped one).
         detector: the 2D keypoint detector (default: BlazePose, created on first use).
+        evidence_config: how the keypoint evidence updates the network's distribution.
 
     Thread safety: ``predict`` may be called from several threads; calls are serialised.
     """
@@ -63,13 +74,16 @@ class Predictor:
         device: torch.device | str = "cpu",
         body: BodyModel | None = None,
         detector: KeypointDetector | None = None,
+        evidence_config: EvidenceConfig | None = None,
     ) -> None:
         self.device = torch.device(device)
         self.network = network.to(self.device).eval()
         self.body = (body or BodyModel()).to(self.device)
         self.detector = detector or KeypointDetector()
         self.crop_size = int(network.config.image_size)
+        self.evidence_config = evidence_config or EvidenceConfig()
         self._lock = threading.Lock()
+        self._body64: BodyModel | None = None
 
     @classmethod
     def from_pretrained(
@@ -91,16 +105,22 @@ class Predictor:
         image: str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage,
         occluders: Sequence[Sequence[float]] | np.ndarray | None = None,
         bbox: Sequence[float] | np.ndarray | None = None,
+        evidence: bool = True,
     ) -> BodyPosterior:
         """The body posterior of the person in ``image``.
 
         Args:
             image: a file path, an ``(H, W, 3)`` uint8 RGB array, a PIL image, or a
                 :class:`LoadedImage`.
-            occluders: ``(x0, y0, x1, y1)`` boxes in original-photo pixels, painted black
-                before detection and edge extraction.
+            occluders: ``(x0, y0, x1, y1)`` boxes in original-photo pixels: "this part of the
+                photo gives no evidence". They are painted black for the edge channel, and the
+                keypoints under them are dropped from the heatmaps and from the evidence.
             bbox: ``(x0, y0, x1, y1)``: look for the person only there (pick someone else
                 when a photo shows several people).
+            evidence: condition the network's distribution on the detected keypoints (the
+                default); False returns the network's own distribution. When the fit cannot
+                be made (too few keypoints, non-finite numbers), the network's distribution is
+                returned and ``posterior.fallback_reason`` says why.
 
         Raises:
             ImageInputError: the image is missing, unreadable or unusable.
@@ -114,20 +134,88 @@ class Predictor:
                 occluders=() if occluders is None else occluders,
                 crop_size=self.crop_size,
             )
-            output = self.network(prepared.proxy[None].to(self.device))
+            observed = prepared.confidences > 0
+            tilt = torso_tilt(prepared.keypoints_crop, observed) if evidence else None
+            upright = None
+            proxies = [prepared.proxy]
+            if tilt is not None and abs(tilt) > np.radians(
+                self.evidence_config.upright_start_degrees
+            ):
+                upright = UprightView.from_tilt(tilt, prepared.keypoints_crop, self.crop_size)
+                proxies.append(
+                    build_proxy(
+                        upright.warp(prepared.crop_rgb),
+                        upright.points(prepared.keypoints_crop),
+                        prepared.confidences,
+                    )
+                )
+            output = self.network(torch.stack(proxies).to(self.device))
+            starts = _starts(output, upright)
+            network_posterior = self._posterior(starts, 0, prepared, observed)
+            if not evidence:
+                return network_posterior
+            keypoint_evidence = KeypointEvidence(
+                torch.as_tensor(prepared.keypoints_crop, dtype=torch.float64),
+                torch.as_tensor(observed),
+                self.crop_size,
+            )
+            fit = condition_on_keypoints(
+                self._float64_body(), starts, keypoint_evidence, self.evidence_config
+            )
+        if fit.conditioned is None:
+            return replace(network_posterior, evidence_fit=fit)
+        prior = self._posterior(starts, fit.start, prepared, observed)
+        conditioned = fit.conditioned
+        return replace(
+            prior,
+            F=conditioned.F.float().to(self.device),
+            shape_mean=conditioned.shape_mean.float().to(self.device),
+            shape_std=conditioned.shape_std.float().to(self.device),
+            global_orient=conditioned.global_orient.float().to(self.device),
+            camera=conditioned.camera.float().to(self.device),
+            source="evidence",
+            prior=prior,
+            evidence_fit=fit,
+        )
+
+    def _posterior(
+        self, starts: BodyEstimate, index: int, prepared: NetworkInput, observed: np.ndarray
+    ) -> BodyPosterior:
+        """The network's posterior of start ``index`` (0: the crop; 1: its upright copy,
+        already in the crop's frame)."""
         return BodyPosterior(
-            F=output.F[0].float(),
-            shape_mean=output.shape_mean[0].float(),
-            shape_std=output.shape_std[0].float(),
-            global_orient=output.global_orient[0].float(),
-            camera=output.camera[0].float(),
+            F=starts.F[index].float().to(self.device),
+            shape_mean=starts.shape_mean[index].float().to(self.device),
+            shape_std=starts.shape_std[index].float().to(self.device),
+            global_orient=starts.global_orient[index].float().to(self.device),
+            camera=starts.camera[index].float().to(self.device),
             crop=prepared.crop,
             keypoints=torch.as_tensor(prepared.detection.keypoints, dtype=torch.float32),
             confidences=torch.as_tensor(prepared.confidences, dtype=torch.float32),
             body=self.body,
             network_input=prepared,
+            evidence=torch.as_tensor(observed),
         )
+
+    def _float64_body(self) -> BodyModel:
+        """A float64 CPU copy of the body model for the fit (made once)."""
+        if self._body64 is None:
+            self._body64 = copy.deepcopy(self.body).cpu().double()
+        return self._body64
 
     def close(self) -> None:
         """Release the detector's resources."""
         self.detector.close()
+
+
+def _starts(output: NetworkOutput, upright: UprightView | None) -> BodyEstimate:
+    """The network's answers as fit starts on the CPU, the upright copy's mapped back to the
+    crop's frame."""
+    F, shape_mean, shape_std, orient, camera = (
+        getattr(output, name).detach().float().cpu()
+        for name in ("F", "shape_mean", "shape_std", "global_orient", "camera")
+    )
+    if upright is not None:
+        orient, camera = orient.clone(), camera.clone()
+        orient[1], camera[1] = upright.to_crop_frame(orient[1], camera[1])
+    return BodyEstimate(F, shape_mean, shape_std, orient, camera)

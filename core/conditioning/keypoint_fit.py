@@ -1,0 +1,206 @@
+"""Condition the network's body distribution on 2D keypoints: fit, then Laplace back to the family.
+
+:func:`condition_on_keypoints` runs the batched Levenberg-Marquardt fit
+(:mod:`hkpd.conditioning.levenberg_marquardt`) of pose, global rotation, camera and shape to
+the evidence keypoints, from every start (e.g. the network run on the crop and on the crop
+rotated upright), keeps the start with the lowest negative log posterior, and builds the
+posterior in the network's families from the fit's Gauss-Newton Hessian ``H``:
+
+- the global rotation and camera are *conditioned on* (fixed at the fit; samples vary pose and
+  shape only, as they do for the network's own distribution);
+- each joint's matrix-Fisher has the fitted rotation as its mode and the joint's *marginal*
+  precision (:func:`hkpd.conditioning.laplace.marginal_precisions`) as its curvature;
+- the shape Gaussian has the fitted shape as its mean and the marginal standard deviations.
+
+Nothing here raises for a failed fit: a :class:`KeypointFit` without ``conditioned`` says why
+(too few keypoints, non-finite numbers), and the caller falls back to the network's posterior.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import torch
+
+from hkpd.body import BodyModel
+from hkpd.conditioning.config import EvidenceConfig
+from hkpd.conditioning.fit_residuals import (
+    NUM_BODY_JOINTS,
+    POSE,
+    SHAPE,
+    BodyEstimate,
+    FitResiduals,
+)
+from hkpd.conditioning.keypoint_evidence import KeypointEvidence
+from hkpd.conditioning.laplace import marginal_precisions, matrix_fisher_from_precision
+from hkpd.conditioning.levenberg_marquardt import SolverResult, levenberg_marquardt
+
+
+@dataclass(frozen=True)
+class ConditionedBody:
+    """The evidence posterior's parameters, float64, in the network's families and frames.
+
+    Attributes:
+        F: ``(23, 3, 3)`` per-joint matrix-Fisher parameters (mode = fitted rotation).
+        shape_mean, shape_std: ``(K,)`` the shape Gaussian.
+        global_orient: ``(3, 3)`` fitted body-to-camera rotation.
+        camera: ``(3,)`` fitted weak-perspective ``[s, tx, ty]`` of the crop.
+    """
+
+    F: torch.Tensor
+    shape_mean: torch.Tensor
+    shape_std: torch.Tensor
+    global_orient: torch.Tensor
+    camera: torch.Tensor
+
+
+@dataclass(frozen=True)
+class KeypointFit:
+    """The outcome of one photo's fit.
+
+    Attributes:
+        conditioned: the posterior's parameters, or None when the fit failed or was skipped.
+        reason: why ``conditioned`` is None ("" when it is not).
+        evidence_count: number of evidence keypoints.
+        start: index of the start that won (-1 when the fit did not run).
+        costs: ``(B,)`` final negative log posterior of each start (empty when it did not run).
+        initial_costs: ``(B,)`` the starts' costs before the fit.
+        iterations: Levenberg-Marquardt iterations run.
+        converged: the winning start met the tolerance within the iteration limit.
+        keypoint_weights: ``(17,)`` robust weights of the winning start's keypoints (1 = fully
+            trusted, near 0 = treated as a detector outlier; 0 where there is no evidence).
+        seconds: wall time of the fit.
+    """
+
+    conditioned: ConditionedBody | None
+    reason: str
+    evidence_count: int
+    start: int = -1
+    costs: torch.Tensor | None = None
+    initial_costs: torch.Tensor | None = None
+    iterations: int = 0
+    converged: bool = False
+    keypoint_weights: torch.Tensor | None = None
+    seconds: float = 0.0
+
+    @property
+    def succeeded(self) -> bool:
+        return self.conditioned is not None
+
+
+def fit_keypoints(
+    body: BodyModel, starts: BodyEstimate, evidence: KeypointEvidence, config: EvidenceConfig
+) -> SolverResult:
+    """Run the fit from every start (see :func:`condition_on_keypoints`).
+
+    Args:
+        body: float64 body model.
+        starts: B network predictions; each start is regularised by its own prior.
+        evidence: the observed keypoints.
+        config: the evidence settings.
+    """
+    residuals = FitResiduals(body, starts, evidence, config)
+    return levenberg_marquardt(
+        residuals,
+        residuals.start(),
+        robust_scale=config.robust_scale,
+        max_iterations=config.max_iterations,
+        tolerance=config.tolerance,
+    )
+
+
+def laplace_posterior(
+    result: SolverResult, start: int, spread: str = "marginal"
+) -> ConditionedBody:
+    """The family posterior of one start from the fit's Hessian (see the module docstring)."""
+    hessian = result.hessian[start]
+    kept = torch.cat((torch.arange(POSE.start, POSE.stop), torch.arange(SHAPE.start, SHAPE.stop)))
+    conditional = hessian[kept][:, kept]  # global rotation and camera held fixed
+    if spread == "marginal":
+        joint_precision = marginal_precisions(conditional, NUM_BODY_JOINTS)
+    else:
+        spans = [slice(3 * joint, 3 * joint + 3) for joint in range(NUM_BODY_JOINTS)]
+        joint_precision = torch.stack([conditional[span, span] for span in spans])
+    state = result.state
+    body_pose = state.body_pose()[start]
+    F = matrix_fisher_from_precision(body_pose, joint_precision)
+    shape_covariance = torch.linalg.inv(conditional)[POSE.stop :, POSE.stop :]
+    return ConditionedBody(
+        F=F,
+        shape_mean=state.betas[start],
+        shape_std=shape_covariance.diagonal().clamp_min(0.0).sqrt(),
+        global_orient=state.global_orient()[start],
+        camera=state.camera()[start],
+    )
+
+
+def condition_on_keypoints(
+    body: BodyModel,
+    starts: BodyEstimate,
+    evidence: KeypointEvidence,
+    config: EvidenceConfig | None = None,
+) -> KeypointFit:
+    """Fit the body to the evidence from every start and return the conditioned posterior.
+
+    Args:
+        body: float64 body model (``BodyModel().double()``).
+        starts: B >= 1 network predictions (priors and starting points).
+        evidence: the observed keypoints in the crop the starts' cameras refer to.
+        config: the evidence settings (defaults: :class:`EvidenceConfig`).
+
+    Returns:
+        A :class:`KeypointFit`; ``conditioned`` is None (with ``reason``) when there were fewer
+        than ``config.min_keypoints`` evidence keypoints or the numbers were not finite.
+    """
+    config = config or EvidenceConfig()
+    began = time.perf_counter()
+    count = evidence.count
+    if count < config.min_keypoints:
+        return KeypointFit(
+            None,
+            f"only {count} keypoint(s) are evidence (confident and not under an occluder); "
+            f"the fit needs at least {config.min_keypoints}",
+            count,
+        )
+    starts64 = starts.to(torch.float64)
+    if not all(
+        torch.isfinite(t).all()
+        for t in (starts64.F, starts64.shape_mean, starts64.shape_std, starts64.camera)
+    ):
+        return KeypointFit(None, "the network's prediction is not finite", count)
+    with torch.no_grad():
+        result = fit_keypoints(body, starts64, evidence, config)
+        costs = torch.where(torch.isfinite(result.cost), result.cost, torch.inf)
+        best = int(costs.argmin())
+        conditioned = (
+            laplace_posterior(result, best, config.joint_spread)
+            if torch.isfinite(costs[best])
+            else None
+        )
+    common = {
+        "evidence_count": count,
+        "start": best,
+        "costs": result.cost,
+        "initial_costs": result.initial_cost,
+        "iterations": result.iterations,
+        "converged": bool(result.converged[best]),
+        "keypoint_weights": result.keypoint_weights[best] * evidence.observed.to(torch.float64),
+        "seconds": time.perf_counter() - began,
+    }
+    if conditioned is None or not _finite(conditioned):
+        return KeypointFit(None, "the fit produced non-finite numbers", **common)
+    return KeypointFit(conditioned, "", **common)
+
+
+def _finite(conditioned: ConditionedBody) -> bool:
+    return all(
+        bool(torch.isfinite(t).all())
+        for t in (
+            conditioned.F,
+            conditioned.shape_mean,
+            conditioned.shape_std,
+            conditioned.global_orient,
+            conditioned.camera,
+        )
+    ) and bool((conditioned.shape_std > 0).all())
