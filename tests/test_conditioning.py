@@ -87,7 +87,7 @@ def test_fit_to_a_bodys_exact_keypoints_recovers_it(body64, scene) -> None:
             FRONTAL_GLOBAL_ORIENT.double(),
             scene["start"].camera[0],
             torch.zeros(1, 10).double(),
-        )  # fmt: skip
+        )
         - scene["keypoints"]
     ).norm(dim=-1)
     error = _reprojection(body64, fit, scene)

@@ -87,6 +87,12 @@ def build_parser() -> argparse.ArgumentParser:
         f"{' '.join(DEFAULT_FORMATS)})",
     )
     parser.add_argument(
+        "--no-evidence",
+        action="store_true",
+        help="return the network's own distribution instead of conditioning it on the detected "
+        "2D keypoints (the paper's method; docs/evidence.md)",
+    )
+    parser.add_argument(
         "--bbox",
         nargs="+",
         metavar="COORD",
@@ -194,6 +200,7 @@ class PhotoResult:
     files: list[str] = field(default_factory=list)
     seconds: float = 0.0
     person_box: tuple[float, ...] | None = None
+    note: str | None = None
 
 
 def _timed(timings: dict[str, float], name: str, start: float) -> float:
@@ -214,6 +221,7 @@ def predict_photo(
     model_path: str,
     scale: UncertaintyColourScale,
     uncertainty_samples: int = UNCERTAINTY_SAMPLES,
+    evidence: bool = True,
 ) -> PhotoResult:
     """Predict one photo and write its files into ``folder``.
 
@@ -224,7 +232,7 @@ def predict_photo(
 
     started = time.perf_counter()
     timings: dict[str, float] = {}
-    posterior = predictor.predict(image, bbox=bbox)
+    posterior = predictor.predict(image, bbox=bbox, evidence=evidence)
     clock = _timed(timings, "predict_s", started)
     mode = posterior.mode()
     drawn = posterior.sample(samples, seed=seed) if samples > 0 else None
@@ -288,6 +296,7 @@ def predict_photo(
             "note": "BlazePose takes one person (usually the largest, most central); pass "
             "--bbox x0 y0 x1 y1 to pick another",
         },
+        "posterior": _posterior_summary(posterior, evidence),
         "crop": {
             "centre": crop.centre,
             "side": crop.side,
@@ -321,7 +330,30 @@ def predict_photo(
         files=files,
         seconds=timings["total_s"],
         person_box=tuple(float(v) for v in detection.person_box),
+        note=posterior.fallback_reason and f"network posterior ({posterior.fallback_reason})",
     )
+
+
+def _posterior_summary(posterior: Any, evidence: bool) -> dict[str, object]:
+    """What ``summary.json`` says about where the distribution comes from."""
+    fit = posterior.evidence_fit
+    summary: dict[str, object] = {
+        "source": posterior.source,
+        "evidence_requested": evidence,
+        "fallback_reason": posterior.fallback_reason,
+    }
+    if posterior.evidence is not None:
+        summary["evidence_keypoints"] = [int(i) for i in posterior.evidence.nonzero().flatten()]
+    if fit is not None and fit.conditioned is not None:
+        summary["fit"] = {
+            "start": "upright copy" if fit.start == 1 else "crop",
+            "iterations": fit.iterations,
+            "converged": fit.converged,
+            "cost": float(fit.costs[fit.start]),
+            "seconds": round(fit.seconds, 4),
+            "keypoint_weights": [round(float(w), 4) for w in fit.keypoint_weights],
+        }
+    return summary
 
 
 def _expected_errors() -> tuple[type[BaseException], ...]:
@@ -393,6 +425,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     model_path=str(model_path),
                     scale=scale,
                     uncertainty_samples=args.uncertainty_samples,
+                    evidence=not args.no_evidence,
                 )
             except expected as error:
                 result = PhotoResult(image=image, error=_one_line(error))
@@ -407,7 +440,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 box = ", ".join(f"{value:.0f}" for value in result.person_box or ())
                 tqdm.write(
                     f"{image}: person at bbox ({box}) -> {result.folder} ({result.seconds:.1f} s)"
-                    " [several people? pick one with --bbox x0 y0 x1 y1]",
+                    " [several people? pick one with --bbox x0 y0 x1 y1]"
+                    + (f" [{result.note}]" if result.note else ""),
                     file=sys.stdout,
                 )
     except KeyboardInterrupt:
