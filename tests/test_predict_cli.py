@@ -326,3 +326,53 @@ def autograd_stays_on():
     """hkpd-predict's main() runs without autograd but must hand it back to its caller."""
     yield
     assert torch.is_grad_enabled()
+
+
+@pytest.mark.parametrize("flags, source", [([], "evidence"), (["--no-evidence"], "network")])
+def test_summary_says_which_posterior_was_written(
+    photos, tmp_path, checkpoint, fake_predictor_factory, monkeypatch, capsys, flags, source
+):
+    monkeypatch.setattr(cli, "load_predictor", fake_predictor_factory)
+    code = cli.main(
+        [str(photos["person"]), "--out", str(tmp_path), "--model", str(checkpoint),
+         "--samples", "0", "--format", "npz", "--uncertainty-samples", "2", *flags]
+    )  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    posterior = json.loads((tmp_path / "person" / "summary.json").read_text())["posterior"]
+    assert posterior["source"] == source
+    assert posterior["evidence_requested"] is (not flags)
+    assert posterior["fallback_reason"] is None
+    assert len(posterior["evidence_keypoints"]) >= 4
+    assert ("fit" in posterior) is (source == "evidence")
+
+
+def test_evidence_false_returns_the_networks_own_output_and_evidence_keeps_it(
+    scene, checkpoint, fake_predictor_factory
+):
+    predictor = fake_predictor_factory(checkpoint, "cpu")
+    network_only = predictor.predict(scene.image, evidence=False)
+    with torch.no_grad():
+        direct = predictor.network(network_only.network_input.proxy[None])
+    assert network_only.source == "network" and network_only.evidence_fit is None
+    torch.testing.assert_close(network_only.F, direct.F[0], rtol=0, atol=0)
+    torch.testing.assert_close(network_only.camera, direct.camera[0], rtol=0, atol=0)
+    conditioned = predictor.predict(scene.image)
+    assert conditioned.source == "evidence" and conditioned.prior is not None
+    torch.testing.assert_close(conditioned.prior.F, network_only.F, rtol=0, atol=0)
+    assert torch.isfinite(conditioned.F).all() and not torch.equal(conditioned.F, network_only.F)
+
+
+def test_too_little_evidence_falls_back_to_the_network_and_says_why(
+    scene, checkpoint, fake_predictor_factory
+):
+    from hkpd.conditioning import EvidenceConfig
+
+    predictor = fake_predictor_factory(checkpoint, "cpu")
+    predictor.evidence_config = EvidenceConfig(min_keypoints=17)
+    posterior = predictor.predict(scene.image)
+    assert posterior.source == "network"
+    assert (
+        posterior.fallback_reason is not None and "needs at least 17" in posterior.fallback_reason
+    )
+    reference = predictor.predict(scene.image, evidence=False)
+    torch.testing.assert_close(posterior.F, reference.F, rtol=0, atol=0)
