@@ -28,6 +28,14 @@ import torch
 _NEWTON_MAX_ITERATIONS = 50
 _NEWTON_TOLERANCE = 1e-13
 _ROUND_ACCEPTANCE_GUESS = 0.45
+MAX_REJECTION_ROUNDS = 64
+"""Rounds after which the rejection loop gives up. Each round is sized for the worst-case
+acceptance (~0.447) plus three standard deviations, so even the second round is rare: reaching
+this limit means the parameters are broken (e.g. overflowing), never bad luck."""
+
+
+class SamplerError(ValueError):
+    """The rejection sampler cannot draw from these parameters (not finite, or overflowing)."""
 
 
 @torch.no_grad()
@@ -104,6 +112,14 @@ def draw_accepted_noise(
     if num_samples < 0:
         raise ValueError(f"num_samples must be >= 0, got {num_samples}")
     lambdas = lambdas.detach()
+    bad = ~(torch.isfinite(lambdas).all(-1) & torch.isfinite(b))
+    if bool(bad.any()):
+        rows = bad.nonzero().flatten().tolist()
+        raise SamplerError(
+            f"cannot sample: {len(rows)} distribution(s) have non-finite or overflowing "
+            f"concentrations (rows {rows[:8]}{' ...' if len(rows) > 8 else ''}); check F for "
+            "inf/NaN or values beyond the dtype's range (use float64 for concentrations > 1e30)"
+        )
     count = lambdas.shape[0]
     device, dtype = lambdas.device, lambdas.dtype
     inv_omega = 1.0 / (1.0 + 2.0 * lambdas / b.unsqueeze(-1))
@@ -117,7 +133,15 @@ def draw_accepted_noise(
     proposed = torch.zeros(count, dtype=torch.long, device=device)
     accepted_total = torch.zeros(count, dtype=torch.long, device=device)
     rows = torch.arange(count, device=device)
+    rounds = 0
     while num_samples > 0 and rows.numel() > 0:
+        rounds += 1
+        if rounds > MAX_REJECTION_ROUNDS:
+            raise SamplerError(
+                f"the rejection sampler accepted too few proposals for {rows.numel()} "
+                f"distribution(s) in {MAX_REJECTION_ROUNDS} rounds; their parameters are "
+                "probably broken (check F for extreme values)"
+            )
         round_size = _round_size(int((num_samples - filled[rows]).max()))
         eps = torch.randn(
             rows.numel(), round_size, 4, device=device, dtype=dtype, generator=generator

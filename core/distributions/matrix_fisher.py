@@ -10,6 +10,7 @@ from torch.distributions import Distribution, constraints
 from torch.distributions.utils import lazy_property
 
 from hkpd.distributions.bingham_sampler import (
+    SamplerError,
     draw_accepted_noise,
     kent_optimal_b,
     log_envelope_constant,
@@ -210,6 +211,11 @@ class MatrixFisher(Distribution):
         """
         sample_shape = torch.Size(sample_shape)
         count = sample_shape.numel()
+        if not bool(torch.isfinite(self.F).all()):
+            raise SamplerError(
+                "cannot sample a matrix-Fisher whose F has inf or NaN entries (at flat index "
+                f"{torch.isfinite(self.F).logical_not().flatten(-2).any(-1).flatten().nonzero().flatten().tolist()[:8]})"
+            )
         lambdas, b = self._proposal
         drawn = draw_accepted_noise(lambdas, b, count, generator=generator)
         self.last_acceptance_rate = drawn.acceptance_rate.reshape(self.batch_shape)
