@@ -181,3 +181,25 @@ def test_report_keeps_two_decimals_below_ten() -> None:
 
     table = markdown_table({"m": {"a": 0.12345, "b": 1.194, "c": 58.83, "d": float("nan")}})
     assert table.splitlines()[-1] == "| m | 0.123 | 1.19 | 58.8 | – |"
+
+
+def test_eval_with_evidence_scores_both_posteriors(tmp_path, capsys) -> None:
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    torch.manual_seed(0)
+    checkpoint = save_checkpoint(
+        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    report = tmp_path / "report.md"
+    arguments = [str(checkpoint), "--count", "4", "--samples", "3", "--out", str(report)]
+    assert eval_main([*arguments, "--evidence", "--occlusion-cases", "2"]) == 0
+    lines = report.read_text().splitlines()
+    evidence_rows = [line for line in lines if line.startswith(f"| {checkpoint} (2D evidence)")]
+    network_rows = [line for line in lines if line.startswith(f"| {checkpoint} (network only)")]
+    assert len(evidence_rows) == 2 and len(network_rows) == 1  # synthetic table + occlusion
+    network = [float(cell) for cell in network_rows[0].strip("|").split("|")[1:-1]]
+    evidence = [float(cell) for cell in evidence_rows[0].strip("|").split("|")[1:]]
+    # An untrained network is far from the keypoints; the evidence pulls the mode onto them.
+    assert evidence[0] < 0.5 * network[0]
+    assert evidence[-1] == 1.0  # every fit succeeded ("conditioned" share)
+    assert eval_main([*arguments, "--evidence", "--concentration-scale", "2"]) == 2
+    assert "one of them" in capsys.readouterr().err

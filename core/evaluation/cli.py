@@ -6,6 +6,13 @@ Examples::
     hkpd-eval runs/a/last.pt --coco ../shared/data/coco_mini --no-synthetic
     hkpd-eval runs/a/last.pt --poses poses.npz --out report.md
     hkpd-eval runs/a/last.pt --poses poses.npz --concentration-scale 0.5 1 2   # calibration
+    hkpd-eval runs/a/last.pt --poses poses.npz --coco coco_mini --evidence     # + 2D evidence
+
+With ``--evidence`` every evaluation also scores the keypoint-evidence posterior next to the
+network's own (``docs/evidence.md``): on the synthetic test set the evidence is the exact
+keypoints with detector-like noise (:mod:`hkpd.synthesis.detector_noise`), on photos it is
+BlazePose's, and the occlusion response is measured on photos too (a box around an annotated
+forearm or lower leg).
 
 The synthetic test set is 1000 examples (``--count``) rendered from the pose bank's *test*
 split (held-out subjects) with a fixed seed, at each network's own input size, so every run of
@@ -33,6 +40,15 @@ SYNTHETIC_COLUMNS = [
     "joint_error_2d_samples",
 ]
 TEST_SET_SEED = 2021
+EVIDENCE_COLUMNS = [
+    "joint_error_2d_mode",
+    "joint_error_2d_samples",
+    "joint_spread_2d_samples",
+    "pose_coverage_50",
+    "pose_coverage_90",
+    "mpjpe_pa",
+    "conditioned",
+]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -57,6 +73,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="evaluate each checkpoint with every predicted F multiplied by these factors "
         "(post-hoc temperature: < 1 widens the pose distributions, > 1 sharpens them; "
         "synthetic and occlusion evaluations only; default 1, as trained)",
+    )
+    parser.add_argument(
+        "--evidence",
+        action="store_true",
+        help="also evaluate the keypoint-evidence posterior (the predictor's default) next to "
+        "the network's own, on every requested set",
     )
     parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
     parser.add_argument("--device", default="auto")
@@ -129,6 +151,8 @@ def main(argv: list[str] | None = None) -> int:
             raise FileNotFoundError(f"COCO folder {arguments.coco} does not exist")
         if any(not (0 < factor < float("inf")) for factor in arguments.concentration_scale):
             raise ValueError("--concentration-scale factors must be positive numbers")
+        if arguments.evidence and arguments.concentration_scale != [1.0]:
+            raise ValueError("--evidence and --concentration-scale: use one of them per run")
         if arguments.coco is not None and arguments.concentration_scale != [1.0]:
             raise ValueError(
                 "--concentration-scale applies to the synthetic and occlusion evaluations: "
@@ -169,21 +193,49 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             from hkpd.evaluation.figures import plot_2d_errors
 
             plot_2d_errors(rows, arguments.figure)
+        if arguments.evidence:
+            rows = {}
+            for checkpoint in arguments.checkpoints:
+                both = evaluate_evidence_synthetic(
+                    checkpoint, arguments.poses, arguments.count, arguments.samples, device
+                )
+                rows[f"{checkpoint} (network only)"] = both["network"]
+                rows[f"{checkpoint} (2D evidence)"] = both["evidence"]
+            report.append(
+                "### Synthetic test set with detector-like keypoint noise: network vs 2D "
+                "evidence (calibrated coverage 0.50 / "
+                f"{0.885 if arguments.samples == 25 else 0.9})\n\n"
+                + markdown_table(rows, EVIDENCE_COLUMNS)
+            )
     if arguments.coco is not None:
         from hkpd.evaluation.real_photos import evaluate_photos, load_coco_people
         from hkpd.prediction.predictor import Predictor
 
         people = load_coco_people(arguments.coco)
-        rows = {}
+        rows, occlusion_rows = {}, {}
         for checkpoint in arguments.checkpoints:
             predictor = Predictor.from_pretrained(checkpoint, device=str(device))
-            rows[str(checkpoint)] = evaluate_photos(predictor, people)
+            if not arguments.evidence:
+                rows[str(checkpoint)] = evaluate_photos(predictor, people)
+            else:
+                from hkpd.evaluation.photo_occlusion import photo_occlusion_response
+
+                for evidence, label in ((False, "network only"), (True, "2D evidence")):
+                    name = f"{checkpoint} ({label})"
+                    rows[name] = evaluate_photos(predictor, people, evidence=evidence)
+                    occlusion_rows[name] = photo_occlusion_response(predictor, people, evidence)
             predictor.close()
         columns = list(next(iter(rows.values())))
         report.append(
             f"### Real photos: {arguments.coco} ({len(people)} people with >= 12 visible "
             "keypoints; 2D errors on visible keypoints)\n\n" + markdown_table(rows, columns)
         )
+        if occlusion_rows:
+            report.append(
+                "### Occlusion response on the photos: a box around one annotated forearm or "
+                "lower leg\n\n"
+                + markdown_table(occlusion_rows, list(next(iter(occlusion_rows.values()))))
+            )
     if arguments.occlusion_cases > 0:
         rows = {
             _row_name(checkpoint, factor, arguments.concentration_scale): occlusion_summary(
@@ -192,6 +244,11 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             for checkpoint in arguments.checkpoints
             for factor in arguments.concentration_scale
         }
+        if arguments.evidence:
+            for checkpoint in arguments.checkpoints:
+                rows[f"{checkpoint} (2D evidence)"] = occlusion_summary(
+                    checkpoint, arguments.poses, arguments.occlusion_cases, device, evidence=True
+                )
         report.append(
             f"### Occlusion response: {arguments.occlusion_cases} synthetic test images, one "
             "forearm or lower leg covered by a black box\n\n"
@@ -208,10 +265,15 @@ def _row_name(checkpoint: Path, factor: float, scales: list[float]) -> str:
 
 
 def occlusion_summary(
-    checkpoint: Path, poses: Path | None, cases: int, device, concentration_scale: float = 1.0
+    checkpoint: Path,
+    poses: Path | None,
+    cases: int,
+    device,
+    concentration_scale: float = 1.0,
+    evidence: bool = False,
 ) -> dict:
     """:func:`hkpd.evaluation.occlusion_response.summarise` for one checkpoint (F optionally
-    scaled)."""
+    scaled; or the keypoint-evidence posterior, conditioned on the present input keypoints)."""
     from hkpd.evaluation.occlusion_response import occlusion_response, summarise
     from hkpd.synthesis.augmentations import AugmentationConfig
 
@@ -219,7 +281,31 @@ def occlusion_summary(
         checkpoint, poses, device, AugmentationConfig.disabled()
     )
     scaled = ConcentrationScaled(network, concentration_scale)
-    return summarise(occlusion_response(scaled, generator, cases))
+    condition = None
+    if evidence:
+        from hkpd.conditioning import EvidenceConfig
+        from hkpd.evaluation.evidence_synthetic import condition_batch, float64_body
+
+        body64, config = float64_body(generator.body), EvidenceConfig()
+        size = generator.config.image_size
+
+        def condition(output, keypoints, present):
+            return condition_batch(output, keypoints, present, size, body64, config)[0]
+
+    return summarise(occlusion_response(scaled, generator, cases, condition=condition))
+
+
+def evaluate_evidence_synthetic(
+    checkpoint: Path, poses: Path | None, count: int, samples: int, device
+) -> dict[str, dict[str, float]]:
+    """Network-only and evidence posteriors on the fixed synthetic test set with detector-like
+    keypoint noise (:func:`hkpd.evaluation.evidence_synthetic.evaluate_evidence_batches`)."""
+    from hkpd.evaluation.evidence_synthetic import evaluate_evidence_batches
+    from hkpd.synthesis.generator import iter_fixed_test_set
+
+    network, generator = _network_and_test_generator(checkpoint, poses, device)
+    batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
+    return evaluate_evidence_batches(network, batches, generator.body, num_samples=samples)
 
 
 if __name__ == "__main__":

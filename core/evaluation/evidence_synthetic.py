@@ -9,12 +9,14 @@ posteriors identically. Examples whose fit falls back score the network's poster
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Iterable
 
 import torch
 
 from hkpd.body import BodyModel
 from hkpd.conditioning import BodyEstimate, EvidenceConfig, KeypointEvidence, condition_on_keypoints
+from hkpd.evaluation.metrics import MILLIMETRES_PER_METRE
 from hkpd.evaluation.prediction_metrics import EvaluationTargets, evaluate_prediction
 from hkpd.network.output import NetworkOutput
 from hkpd.synthesis.batch import TrainingBatch
@@ -81,11 +83,11 @@ def evaluate_evidence_batches(
 
     Returns:
         ``{"network": metrics, "evidence": metrics}``; 2D errors in pixels at a 256 crop, 3D in
-        metres; ``evidence`` also has ``conditioned`` (share of examples whose fit succeeded).
+        millimetres; ``evidence`` also has ``conditioned`` (share of examples whose fit succeeded).
     """
     config = config or EvidenceConfig()
     noise = noise or DetectorNoise()
-    body64 = _float64_body(body)
+    body64 = float64_body(body)
     noise_generator = torch.Generator().manual_seed(seed)
     sums: dict[str, dict[str, list[torch.Tensor]]] = {"network": {}, "evidence": {}}
     for batch in batches:
@@ -106,7 +108,7 @@ def evaluate_evidence_batches(
             generator = torch.Generator(device=batch.proxy.device).manual_seed(seed)
             metrics = evaluate_prediction(prediction, body, targets, num_samples, size, generator)
             for metric, values in metrics.items():
-                scaled = values * (256.0 / size) if "_2d_" in metric else values
+                scaled = _in_reported_units(metric, values, size)
                 sums[name].setdefault(metric, []).append(scaled.float().cpu())
         sums["evidence"].setdefault("conditioned", []).append(succeeded.float())
     return {
@@ -115,7 +117,15 @@ def evaluate_evidence_batches(
     }
 
 
-def _float64_body(body: BodyModel) -> BodyModel:
-    import copy
+def _in_reported_units(metric: str, values: torch.Tensor, size: int) -> torch.Tensor:
+    """2D errors in pixels at a 256 crop, 3D ones in millimetres (as :mod:`.synthetic`)."""
+    if "_2d_" in metric:
+        return values * (256.0 / size)
+    if metric.startswith(("mpjpe", "pve_t_sc", "diversity")):
+        return values * MILLIMETRES_PER_METRE
+    return values
 
+
+def float64_body(body: BodyModel) -> BodyModel:
+    """A float64 CPU copy of ``body`` for the keypoint fit."""
     return copy.deepcopy(body).cpu().double()

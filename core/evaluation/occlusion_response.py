@@ -13,6 +13,7 @@ versions; each limb's mean per-vertex uncertainty (100 samples) is compared:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,9 +110,19 @@ def sampled_vertex_uncertainty(
     return torch.stack(result)
 
 
-def _per_vertex_uncertainty(network, proxy, body, samples: int, seed: int) -> torch.Tensor:
-    """``(B, V)`` uncertainty of each image's predicted posterior, metres."""
+Conditioner = Callable[[NetworkOutput, torch.Tensor, torch.Tensor], NetworkOutput]
+"""Maps the network's output, the ``(B, 17, 2)`` input keypoints and their ``(B, 17)`` presence
+to another posterior (e.g. the keypoint-evidence one)."""
+
+
+def _per_vertex_uncertainty(
+    network, proxy, body, samples: int, seed: int, condition=None, keypoints=None, present=None
+) -> torch.Tensor:
+    """``(B, V)`` uncertainty of each image's predicted posterior (conditioned by ``condition``
+    on the present keypoints, when given), metres."""
     output = network(proxy)
+    if condition is not None:
+        output = condition(output, keypoints, present)
     generator = torch.Generator(device=proxy.device).manual_seed(seed)
     poses = output.pose_distribution().sample(samples, generator=generator)  # (S, B, 23, 3, 3)
     betas = output.sample_betas(samples, generator)
@@ -126,6 +137,7 @@ def occlusion_response(
     samples: int = 100,
     seed: int = 77,
     batch_size: int = 10,
+    condition: Conditioner | None = None,
 ) -> list[OcclusionCase]:
     """Cover one limb per image (cycling through the four limbs) and measure the response.
 
@@ -134,6 +146,8 @@ def occlusion_response(
         generator: a synthetic data generator with augmentation switched off, on held-out poses.
         cases: images with a visible limb to evaluate (images where the chosen limb shows fewer
             than ``MIN_LIMB_PIXELS`` pixels are skipped and replaced).
+        condition: optional map to another posterior given the present input keypoints (the
+            covered limb's keypoints are absent in the covered view).
 
     Returns:
         One :class:`OcclusionCase` per evaluated image.
@@ -166,8 +180,15 @@ def occlusion_response(
             torch.stack(covered_present),
             device,
         )
-        before = _per_vertex_uncertainty(network, clean, body, samples, seed)
-        after = _per_vertex_uncertainty(network, covered, body, samples, seed)
+        keypoints = rendered.input_keypoints[items]
+        present = rendered.input_present[items]
+        before = _per_vertex_uncertainty(
+            network, clean, body, samples, seed, condition, keypoints, present
+        )
+        after = _per_vertex_uncertainty(
+            network, covered, body, samples, seed, condition, keypoints,
+            torch.stack(covered_present).to(present.device),
+        )  # fmt: skip
         for row, (_, limb) in enumerate(chosen):
             ratios = {
                 name: float(after[row, mask].mean() / before[row, mask].mean().clamp_min(1e-9))
