@@ -16,7 +16,7 @@ class EvidenceConfig:
             (over-confident) distribution counts for less than its face value.
         keypoint_sigma: standard deviation of one detected keypoint coordinate about the body
             model's keypoint, as a fraction of the crop's side (the crop is 1.2× the person's
-            extent, so 0.04 is about 5 % of the person's height).
+            extent, so 0.03 is about 3.6 % of the person's height).
         robust_scale: the Cauchy loss turns from quadratic to logarithmic at this many sigmas,
             so a keypoint the detector put on the wrong limb pulls only weakly.
         min_confidence: detector confidence from which a keypoint counts as evidence (the proxy
@@ -31,14 +31,16 @@ class EvidenceConfig:
         tolerance: stop when an accepted step lowers the cost by less than this fraction.
         upright_start_degrees: when the detected torso leans more than this from upright, the
             network is also run on the crop rotated upright, and the fit starts from both.
-        joint_spread: ``"marginal"`` gives each joint its marginal posterior precision (evidence
-            shared along a chain counted once; the default), ``"conditional"`` the precision
-            given all other joints (the diagonal blocks: tighter samples, over-confident per
-            joint). ``docs/evidence.md`` compares the two.
+        joint_spread: ``"conditional"`` (the default) gives each joint its precision given the
+            other joints (the diagonal blocks of the posterior precision: the best independent
+            approximation in the mode-seeking sense, every sample consistent with the evidence);
+            ``"marginal"`` its marginal precision (evidence shared along a chain counted once
+            per chain, but samples drawn joint by joint then scatter the limb ends).
+            ``docs/evidence.md`` says how the defaults were chosen.
     """
 
-    prior_weight: float = 0.3
-    keypoint_sigma: float = 0.04
+    prior_weight: float = 0.2
+    keypoint_sigma: float = 0.03
     robust_scale: float = 3.0
     min_confidence: float = 0.6
     min_keypoints: int = 4
@@ -47,7 +49,7 @@ class EvidenceConfig:
     max_iterations: int = 30
     tolerance: float = 1e-6
     upright_start_degrees: float = 30.0
-    joint_spread: str = "marginal"
+    joint_spread: str = "conditional"
 
     def __post_init__(self) -> None:
         positive = {

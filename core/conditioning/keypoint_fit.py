@@ -8,8 +8,10 @@ posterior in the network's families from the fit's Gauss-Newton Hessian ``H``:
 
 - the global rotation and camera are *conditioned on* (fixed at the fit; samples vary pose and
   shape only, as they do for the network's own distribution);
-- each joint's matrix-Fisher has the fitted rotation as its mode and the joint's *marginal*
-  precision (:func:`hkpd.conditioning.laplace.marginal_precisions`) as its curvature;
+- each joint's matrix-Fisher has the fitted rotation as its mode and, as its curvature, the
+  joint's precision given the other joints (``EvidenceConfig.joint_spread="conditional"``, the
+  diagonal block of ``H``) or its marginal precision (``"marginal"``,
+  :func:`hkpd.conditioning.laplace.marginal_precisions`);
 - the shape Gaussian has the fitted shape as its mean and the marginal standard deviations.
 
 Nothing here raises for a failed fit: a :class:`KeypointFit` without ``conditioned`` says why
@@ -111,7 +113,7 @@ def fit_keypoints(
 
 
 def laplace_posterior(
-    result: SolverResult, start: int, spread: str = "marginal"
+    result: SolverResult, start: int, spread: str = "conditional"
 ) -> ConditionedBody:
     """The family posterior of one start from the fit's Hessian (see the module docstring)."""
     hessian = result.hessian[start]

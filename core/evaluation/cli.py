@@ -59,6 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--samples", type=int, default=25, help="samples per example")
     parser.add_argument("--coco", type=Path, help="folder with annotations/ and photos (COCO)")
     parser.add_argument(
+        "--coco-split",
+        help="only the photos of this split (e.g. val2017, when train2017 was used for tuning)",
+    )
+    parser.add_argument(
         "--occlusion-cases",
         type=int,
         default=0,
@@ -212,6 +216,11 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
         from hkpd.prediction.predictor import Predictor
 
         people = load_coco_people(arguments.coco)
+        if arguments.coco_split:
+            people = [p for p in people if p.image_path.parent.name == arguments.coco_split]
+            if not people:
+                raise SystemExit(f"hkpd-eval: error: no annotated people in split "
+                                 f"{arguments.coco_split!r} of {arguments.coco}")  # fmt: skip
         rows, occlusion_rows = {}, {}
         for checkpoint in arguments.checkpoints:
             predictor = Predictor.from_pretrained(checkpoint, device=str(device))
