@@ -18,6 +18,7 @@ from hkpd.distributions.bingham_sampler import (
 )
 from hkpd.distributions.normalizer import (
     log_normalizer_and_expectation,
+    log_normalizer_value,
     matrix_fisher_log_normalizer,
 )
 from hkpd.distributions.proper_svd import proper_svd
@@ -111,6 +112,23 @@ class MatrixFisher(Distribution):
     def _svd(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         return proper_svd(self.F)
 
+    @lazy_property
+    def _svd64(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The proper SVD of ``F`` in float64, without gradient, for the density evaluations.
+
+        At concentrations near 1e8 (the shipped model's hands) a float32 SVD's singular values
+        are off by ~10 and ``tr(F^T R)`` loses whole nats to cancellation, so log-densities,
+        entropies and acceptance rates are computed from this one and cast back.
+        """
+        if self.F.dtype == torch.float64 and not self.F.requires_grad:
+            return self._svd
+        return proper_svd(self.F.detach().to(torch.float64))
+
+    def _log_j(self) -> torch.Tensor:
+        """``(...)`` float64 ``log J = log c - tr S`` (no cancellation at large S)."""
+        S64 = self._svd64[1]
+        return log_normalizer_value(S64) - S64.sum(-1)
+
     @property
     def U(self) -> torch.Tensor:
         """``(..., 3, 3)`` left proper-SVD factor; its columns are the principal axes."""
@@ -154,15 +172,46 @@ class MatrixFisher(Distribution):
             return self.U @ torch.diag_embed(expected) @ self.V.transpose(-1, -2)
 
     def log_prob(self, value: torch.Tensor) -> torch.Tensor:
-        """Log density of rotations ``value (..., 3, 3)`` w.r.t. the Haar probability measure."""
+        """Log density of rotations ``value (..., 3, 3)`` w.r.t. the Haar probability measure.
+
+        The value is computed without cancellation, in float64: with ``Q = U^T R V`` as a unit
+        quaternion ``(x, y, z, w)``, ``log p = -log J(S) - 2((s2+s3)x² + (s1+s3)y² + (s1+s2)z²)``
+        (``log J = log c - tr S``), so a float32 ``F`` at concentration 1e8 gives the same
+        log-density as float64 to ~1e-6 nats. Gradients are those of ``tr(F^T R) - log c(F)``
+        (``R - E[R]`` for ``F``), exactly as before.
+        """
         if self._validate_args:
             self._validate_sample(value)
-        return (self.F * value).sum((-1, -2)) - self.log_normalizer
+        exact = self.log_prob_exact(value)
+        if not (torch.is_grad_enabled() and (self.F.requires_grad or value.requires_grad)):
+            return exact.to(torch.promote_types(self.F.dtype, value.dtype))
+        plain = (self.F * value).sum((-1, -2)) - self.log_normalizer
+        return plain + (exact.to(plain.dtype) - plain).detach()
+
+    def log_prob_exact(self, value: torch.Tensor) -> torch.Tensor:
+        """``log p(value)`` in float64, without gradient, from the quaternion form (see
+        :meth:`log_prob`)."""
+        U, S, V = self._svd64
+        Q = U.transpose(-1, -2) @ value.detach().to(torch.float64) @ V
+        x, y, z, _ = roma.rotmat_to_unitquat(Q).unbind(-1)
+        s1, s2, s3 = S.unbind(-1)
+        quadratic = (s2 + s3) * x * x + (s1 + s3) * y * y + (s1 + s2) * z * z
+        return -self._log_j() - 2.0 * quadratic
 
     def entropy(self) -> torch.Tensor:
-        """``(...)`` differential entropy w.r.t. Haar probability (<= 0, 0 iff uniform)."""
+        """``(...)`` differential entropy w.r.t. Haar probability (<= 0, 0 iff uniform).
+
+        Computed in float64 as ``log J + Σ s_i (1 - E[Q_ii])`` (no cancellation at large S);
+        gradients, where ``F`` needs them, are those of ``log c - Σ s_i E[Q_ii]``.
+        """
+        S64 = self._svd64[1]
+        log_c64, expected64 = log_normalizer_and_expectation(S64)
+        exact = (log_c64 - S64.sum(-1)) + (S64 * (1.0 - expected64)).sum(-1)
+        if not (torch.is_grad_enabled() and self.F.requires_grad):
+            return exact.to(self.F.dtype)
         expected = log_normalizer_and_expectation(self.S)[1]
-        return self.log_normalizer - (self.S * expected).sum(-1)
+        plain = self.log_normalizer - (self.S * expected).sum(-1)
+        return plain + (exact.to(plain.dtype) - plain).detach()
 
     # ----------------------------------------------------------------------------- sampling
     @lazy_property
@@ -183,16 +232,11 @@ class MatrixFisher(Distribution):
         Equals ``|Omega|^(1/2) * 1F1(-A) / M`` with ``1F1(-A) = c(F) exp(-sum s)``.
         """
         with torch.no_grad():
-            lambdas = _bingham_eigenvalues(self.S)
+            lambdas = _bingham_eigenvalues(self._svd64[1])
             b = kent_optimal_b(lambdas)
             omega = 1.0 + 2.0 * lambdas / b.unsqueeze(-1)
-            log_rate = (
-                0.5 * torch.log(omega).sum(-1)
-                + self.log_normalizer
-                - self.S.sum(-1)
-                - log_envelope_constant(b)
-            )
-            return torch.exp(log_rate)
+            log_rate = 0.5 * torch.log(omega).sum(-1) + self._log_j() - log_envelope_constant(b)
+            return torch.exp(log_rate).to(self.F.dtype)
 
     def rsample(
         self,

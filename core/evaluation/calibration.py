@@ -16,13 +16,19 @@ from collections.abc import Sequence
 
 import torch
 
+from hkpd.distributions import MatrixFisher
+
 COVERAGE_LEVELS: tuple[float, ...] = (0.5, 0.9)
 """The probability shares of the regions that :func:`rotation_coverage` checks."""
 
 
 def _log_density_up_to_constant(F: torch.Tensor, rotations: torch.Tensor) -> torch.Tensor:
-    """``tr(F^T R)``: ``F`` ``(..., 3, 3)`` and ``rotations`` broadcastable to it; ``(...)``."""
-    return (F * rotations).sum((-2, -1))
+    """``log p(R)`` (``tr(F^T R)`` up to a per-distribution constant), float64 and free of
+    cancellation (:meth:`MatrixFisher.log_prob`): in float32 ``tr(F^T R)`` cannot rank
+    rotations at concentrations of 1e7 and more. ``F`` ``(..., 3, 3)`` and ``rotations``
+    broadcastable to it; returns ``(...)``."""
+    with torch.no_grad():
+        return MatrixFisher(F, validate_args=False).log_prob_exact(rotations)
 
 
 def truth_rank(F: torch.Tensor, samples: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
