@@ -212,3 +212,23 @@ def test_upright_view_maps_the_networks_answer_back_exactly() -> None:
     ndc = camera[0] * ((points @ orient.T)[:, :2] + camera[1:])
     pixels_copy = view.points(ndc_to_pixels(ndc, SIZE).numpy())
     np.testing.assert_allclose(pixels_copy, ndc_to_pixels(ndc_copy, SIZE).numpy(), atol=1e-9)
+
+
+def test_all_keypoints_seen_shrink_the_samples_2d_spread(body64, scene) -> None:
+    config = EvidenceConfig()
+    fit = condition_on_keypoints(body64, scene["start"], _evidence(scene), config)
+
+    def spread_px(F: torch.Tensor, camera: torch.Tensor, orient: torch.Tensor) -> float:
+        generator = torch.Generator().manual_seed(0)
+        poses = KinematicMatrixFisher(F[None], BODY_PARENTS).sample(50, generator)[:, 0]
+        betas = torch.zeros(50, 10, dtype=torch.float64)
+        keypoints, joints = body64.posed_keypoints(betas, poses, orient.expand(50, 3, 3))
+        relative = keypoints - joints[:, :1]
+        pixels = ndc_to_pixels(camera[0] * (relative[..., :2] + camera[1:]), SIZE)
+        return float((pixels - pixels.mean(0)).norm(dim=-1).mean())
+
+    prior = scene["start"]
+    before = spread_px(prior.F[0] * config.prior_weight, prior.camera[0], prior.global_orient[0])
+    c = fit.conditioned
+    after = spread_px(c.F, c.camera, c.global_orient)
+    assert after < 0.7 * before

@@ -376,3 +376,23 @@ def test_too_little_evidence_falls_back_to_the_network_and_says_why(
     )
     reference = predictor.predict(scene.image, evidence=False)
     torch.testing.assert_close(posterior.F, reference.F, rtol=0, atol=0)
+
+
+def test_an_occluder_removes_its_keypoints_from_the_evidence_not_from_the_detection(
+    scene, checkpoint, fake_predictor_factory
+):
+    predictor = fake_predictor_factory(checkpoint, "cpu")
+    knee, ankle = scene.keypoints2d[14], scene.keypoints2d[16]  # right lower leg
+    pad = 6.0
+    box = (min(knee[0], ankle[0]) - pad, min(knee[1], ankle[1]) - pad,
+           max(knee[0], ankle[0]) + pad, max(knee[1], ankle[1]) + pad)  # fmt: skip
+    clean = predictor.predict(scene.image)
+    covered = predictor.predict(scene.image, occluders=[box])
+    assert clean.evidence[[14, 16]].all() and not covered.evidence[[14, 16]].any()
+    assert covered.evidence.sum() == clean.evidence.sum() - 2
+    assert covered.source == "evidence"
+    # the detector saw the same photo both times: its raw keypoints did not move
+    np.testing.assert_array_equal(
+        covered.network_input.detection.keypoints, clean.network_input.detection.keypoints
+    )
+    assert not covered.network_input.proxy[1 + 16].any()  # no heatmap for the hidden ankle
