@@ -197,8 +197,8 @@ class KinematicMatrixFisher(Distribution):
                 raise IndexError(f"joint index out of range for {self.num_joints} joints: {joints}")
             mask[index.to(self.F.device)] = True
         factor = torch.as_tensor(factor, dtype=self.F.dtype, device=self.F.device)
-        if (factor < 0).any():
-            raise ValueError("concentration factors must be non-negative")
+        if not bool(torch.isfinite(factor).all()) or bool((factor < 0).any()):
+            raise ValueError(f"concentration factors must be finite and >= 0, got {factor}")
         if factor.dim() == len(self.batch_shape):
             factor = factor.unsqueeze(-1)
         scale = torch.where(mask, factor, torch.ones_like(factor))

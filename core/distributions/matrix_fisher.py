@@ -88,6 +88,8 @@ class MatrixFisher(Distribution):
     rotations about axis i is ``s_j + s_k``. The normaliser uses the Haar probability measure,
     so ``log c(0) = 0`` and ``F = 0`` is the uniform distribution.
 
+    A float16 or bfloat16 ``F`` is promoted to float32 (samples and densities are float32).
+
     After :meth:`rsample`/:meth:`sample`, ``last_acceptance_rate`` holds the fraction of
     proposals the rejection sampler accepted for each distribution (batch shape).
     """
@@ -103,6 +105,8 @@ class MatrixFisher(Distribution):
             raise ValueError(f"F must have shape (..., 3, 3), got {tuple(F.shape)}")
         if not F.is_floating_point():
             raise TypeError(f"F must be a floating-point tensor, got dtype {F.dtype}")
+        if F.dtype in (torch.float16, torch.bfloat16):
+            F = F.float()  # the SVD and the sampler need at least float32
         self.F = F
         self.last_acceptance_rate: torch.Tensor | None = None
         super().__init__(batch_shape=F.shape[:-2], event_shape=(3, 3), validate_args=validate_args)

@@ -21,6 +21,7 @@ key                     shape, dtype    meaning
 
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,6 +34,11 @@ from hkpd.poses.subject_split import SPLIT_NAMES
 
 BANK_FORMAT = "hkpd-pose-bank-v1"
 _ARRAY_KEYS = ("body_pose", "global_orient", "subject", "clip", "frame", "mirrored", "split")
+
+
+MAX_ROTATION_ANGLE = 4 * np.pi
+"""Axis-angle magnitudes beyond this (radians) are rejected: rotations need at most π, and
+anything this large is corrupt data, not a pose."""
 
 
 @dataclass
@@ -72,6 +78,16 @@ class PoseBank:
             if getattr(self, key).shape != (count,):
                 raise ValueError(
                     f"{key} must have shape ({count},), got {getattr(self, key).shape}"
+                )
+        for key in ("body_pose", "global_orient"):
+            angles = np.linalg.norm(np.asarray(getattr(self, key), dtype=np.float64), axis=-1)
+            bad = ~(np.isfinite(angles) & (angles <= MAX_ROTATION_ANGLE))
+            if bad.any():
+                poses = np.flatnonzero(bad.reshape(count, -1).any(1))
+                raise ValueError(
+                    f"{len(poses)} pose(s) have non-finite or absurd {key} rotations (axis-angle "
+                    f"beyond {MAX_ROTATION_ANGLE:.1f} rad), e.g. pose {int(poses[0])}; rebuild "
+                    "the bank with 'hkpd-poses build'"
                 )
 
     def __len__(self) -> int:
@@ -155,8 +171,11 @@ class PoseBank:
         try:
             with np.load(path, allow_pickle=False) as data:
                 contents = {key: data[key] for key in data.files}
-        except (OSError, ValueError) as error:
-            raise ValueError(f"{path} is not a readable .npz pose bank ({error})") from None
+        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as error:
+            raise ValueError(
+                f"{path} is not a readable .npz pose bank ({type(error).__name__}: {error}); "
+                "it may be truncated: rebuild it with 'hkpd-poses build'"
+            ) from None
         if str(contents.get("format", "")) != BANK_FORMAT:
             raise ValueError(f"{path} is not a pose bank of format {BANK_FORMAT!r}")
         missing = [k for k in (*_ARRAY_KEYS, "clip_names", "split_names") if k not in contents]

@@ -10,6 +10,7 @@ of the OpenCV camera (x right, y down, z away from the viewer), metres.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Literal, Protocol
@@ -28,6 +29,9 @@ if TYPE_CHECKING:
 PosteriorSource = Literal["network", "evidence"]
 """Where a posterior's distribution comes from: the network alone (the paper's method), or the
 network's distribution conditioned on the photo's 2D keypoints (``docs/evidence.md``)."""
+
+UNCERTAINTY_CHUNK = 500
+"""Meshes built at a time by :meth:`BodyPosterior.vertex_uncertainty` (~80 MB of vertices)."""
 
 
 class CropToImage(Protocol):
@@ -137,7 +141,7 @@ class BodyPosterior:
         ndc = weak_perspective_project(keypoints3d, self.camera.expand(count, 3))
         keypoints2d = self.crop.crop_to_image(ndc_to_pixels(ndc, self.crop.size))
         return BodyMeshes(
-            vertices=posed.vertices - root,
+            vertices=posed.vertices.sub_(root),  # in place: one copy of n meshes, not two
             joints=posed.joints - root,
             keypoints3d=keypoints3d,
             keypoints2d=torch.as_tensor(keypoints2d, dtype=keypoints3d.dtype),
@@ -149,15 +153,10 @@ class BodyPosterior:
         """The most likely body: modal rotations and the mean shape (N = 1)."""
         return self._meshes(self.shape_mean[None], self.pose_distribution.mode)
 
-    def sample(self, n: int, seed: int | None = None) -> BodyMeshes:
-        """``n`` bodies drawn from the posterior with the rejection sampler (N = n).
-
-        Args:
-            n: number of samples (>= 1).
-            seed: makes the draw reproducible; None draws fresh randomness.
-        """
-        if n < 1:
-            raise ValueError(f"sample needs n >= 1, got {n}")
+    def _draw(self, n: int, seed: int | None) -> tuple[torch.Tensor, torch.Tensor]:
+        """``betas (n, K)`` and ``body_pose (n, 23, 3, 3)`` drawn from the posterior."""
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise ValueError(f"the number of samples must be an integer >= 1, got {n!r}")
         generator = torch.Generator(device=self.F.device)
         if seed is None:
             generator.seed()
@@ -167,12 +166,53 @@ class BodyPosterior:
             body_pose = self.pose_distribution.sample(n, generator=generator)[:, 0]
             noise = torch.randn(n, self.shape_mean.shape[0], generator=generator,
                                 device=self.F.device, dtype=self.shape_mean.dtype)  # fmt: skip
-        betas = self.shape_mean + noise * self.shape_std
+        return self.shape_mean + noise * self.shape_std, body_pose
+
+    def sample(self, n: int, seed: int | None = None) -> BodyMeshes:
+        """``n`` bodies drawn from the posterior with the rejection sampler (N = n).
+
+        Every mesh is returned (``n × V × 3`` floats: about 160 kB a body); for the spread of
+        many samples use :meth:`vertex_uncertainty`, which works in bounded memory.
+
+        Args:
+            n: number of samples (>= 1).
+            seed: makes the draw reproducible; None draws fresh randomness.
+        """
+        betas, body_pose = self._draw(n, seed)
         return self._meshes(betas, body_pose)
 
-    def vertex_uncertainty(self, n: int = 100, seed: int | None = 0) -> torch.Tensor:
-        """``(V,)`` mean distance of ``n`` sampled meshes' vertices from their mean, metres."""
-        return vertex_uncertainty(self.sample(n, seed).vertices)
+    def vertex_uncertainty(
+        self, n: int = 100, seed: int | None = 0, chunk: int = UNCERTAINTY_CHUNK
+    ) -> torch.Tensor:
+        """``(V,)`` mean distance of ``n`` sampled meshes' vertices from their mean, metres.
+
+        The samples are the ones :meth:`sample` draws for the same ``n`` and ``seed``; meshes
+        are built ``chunk`` at a time (twice when ``n > chunk``: once for the mean, once for
+        the distances), so memory stays bounded whatever ``n`` is.
+        """
+        if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+            raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
+        betas, body_pose = self._draw(n, seed)
+        if n <= chunk:
+            return vertex_uncertainty(self._meshes(betas, body_pose).vertices)
+        pieces = [slice(start, min(start + chunk, n)) for start in range(0, n, chunk)]
+        total = None
+        for piece in pieces:
+            part = self._vertices(betas[piece], body_pose[piece]).sum(0)
+            total = part if total is None else total + part
+        mean = total / n
+        distance = torch.zeros(mean.shape[0], dtype=mean.dtype, device=mean.device)
+        for piece in pieces:
+            vertices = self._vertices(betas[piece], body_pose[piece])
+            distance += torch.linalg.vector_norm(vertices - mean, dim=-1).sum(0)
+        return distance / n
+
+    def _vertices(self, betas: torch.Tensor, body_pose: torch.Tensor) -> torch.Tensor:
+        """``(N, V, 3)`` root-relative vertices (no keypoints or reprojection)."""
+        count = betas.shape[0]
+        with torch.no_grad():
+            posed = self.body(betas, body_pose, self.global_orient.expand(count, 3, 3))
+            return posed.vertices.sub_(posed.joints[:, :1])
 
     def with_concentration(
         self, joint: int | str | Sequence[int | str] | None, factor: float
@@ -182,14 +222,17 @@ class BodyPosterior:
         Factors multiply: scaling twice by 2 is scaling by 4. ``joint=None`` scales all 23.
         Principal axes and modes do not change, only how tightly samples gather around them.
         """
-        if factor <= 0:
-            raise ValueError(f"concentration factor must be positive, got {factor}")
+        factor = _positive_factor("concentration factor", factor)
         if joint is None:
             selected = list(range(len(BODY_JOINT_NAMES)))
-        elif isinstance(joint, (int, str)):
+        elif isinstance(joint, (int, str)) and not isinstance(joint, bool):
             selected = [body_joint_index(joint)]
+        elif isinstance(joint, Sequence) and not isinstance(joint, (str, bool)):
+            selected = [body_joint_index(_joint_key(j)) for j in joint]
         else:
-            selected = [body_joint_index(j) for j in joint]
+            raise TypeError(
+                f"joint must be a joint index, a name, a list of them or None, got {joint!r}"
+            )
         scaled = self.pose_distribution.scale_concentration(selected, factor)
         edited = replace(self, F=scaled.F[0])
         edited.__dict__["pose_distribution"] = scaled  # keeps the reused SVD (cached_property)
@@ -197,8 +240,26 @@ class BodyPosterior:
 
     def with_shape_std(self, factor: float) -> BodyPosterior:
         """A posterior whose shape standard deviations are scaled by ``factor`` (> 0)."""
-        if factor <= 0:
-            raise ValueError(f"shape std factor must be positive, got {factor}")
+        factor = _positive_factor("shape std factor", factor)
         edited = replace(self, shape_std=self.shape_std * factor)
         edited.__dict__["pose_distribution"] = self.pose_distribution  # pose unchanged
         return edited
+
+
+
+def _positive_factor(name: str, factor: float) -> float:
+    """``factor`` as a float, or a ValueError saying it must be a finite positive number."""
+    number = isinstance(factor, (int, float)) and not isinstance(factor, bool)
+    scalar_tensor = isinstance(factor, torch.Tensor) and factor.numel() == 1
+    if not (number or scalar_tensor):
+        raise TypeError(f"{name} must be a number, got {factor!r}")
+    value = float(factor)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value}")
+    return value
+
+
+def _joint_key(joint: int | str) -> int | str:
+    if isinstance(joint, bool) or not isinstance(joint, (int, str)):
+        raise TypeError(f"joints must be indices or names, got {joint!r}")
+    return joint
