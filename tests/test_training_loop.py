@@ -196,4 +196,4 @@ def test_max_minutes_stops_with_a_checkpoint_that_resume_continues(tmp_path, cap
     assert train_main(flags) == 0
     assert "stopped at --max-minutes 1e-06" in capsys.readouterr().out
     assert train_main(["--out", out, "--max-minutes", "0"]) == 2
-    assert "--max-minutes must be positive" in capsys.readouterr().err
+    assert "--max-minutes must be a finite number > 0" in capsys.readouterr().err

@@ -198,7 +198,7 @@ class KinematicMatrixFisher(Distribution):
             mask[index.to(self.F.device)] = True
         factor = torch.as_tensor(factor, dtype=self.F.dtype, device=self.F.device)
         if not bool(torch.isfinite(factor).all()) or bool((factor < 0).any()):
-            raise ValueError(f"concentration factors must be finite and >= 0, got {factor}")
+            raise ValueError(f"concentration factors must be finite and non-negative, got {factor}")
         if factor.dim() == len(self.batch_shape):
             factor = factor.unsqueeze(-1)
         scale = torch.where(mask, factor, torch.ones_like(factor))

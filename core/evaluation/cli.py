@@ -23,6 +23,7 @@ to ``--out``.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -153,6 +154,14 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--figure draws the synthetic results: drop --no-synthetic")
         if arguments.coco is not None and not arguments.coco.is_dir():
             raise FileNotFoundError(f"COCO folder {arguments.coco} does not exist")
+        for name in ("count", "samples"):
+            if getattr(arguments, name) < 1:
+                raise ValueError(f"--{name} must be at least 1, got {getattr(arguments, name)}")
+        if arguments.occlusion_cases < 0:
+            raise ValueError("--occlusion-cases must be >= 0")
+        for flag, path in (("--out", arguments.out), ("--figure", arguments.figure)):
+            if path is not None:
+                _check_writable(flag, path)
         if any(not (0 < factor < float("inf")) for factor in arguments.concentration_scale):
             raise ValueError("--concentration-scale factors must be positive numbers")
         if arguments.evidence and arguments.concentration_scale != [1.0]:
@@ -165,12 +174,38 @@ def main(argv: list[str] | None = None) -> int:
     except (FileNotFoundError, ValueError) as error:
         print(f"hkpd-eval: error: {error}", file=sys.stderr)
         return 2
-    with torch.no_grad():
-        text = _evaluate(arguments, device)
-    print(text)
-    if arguments.out:
-        arguments.out.write_text(text)
+    try:
+        with torch.no_grad():
+            text = _evaluate(arguments, device)
+        print(text)
+        if arguments.out:
+            _write_atomically(arguments.out, text)
+    except (OSError, ValueError) as error:  # CheckpointError is a ValueError
+        print(f"hkpd-eval: error: {error}", file=sys.stderr)
+        return 2
     return 0
+
+
+def _check_writable(flag: str, path: Path) -> None:
+    """Fail before a long evaluation, not after it, when ``path`` cannot be written."""
+    folder = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise ValueError(f"{flag} {path} is a folder; give a file name")
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{flag} {path}: the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise PermissionError(f"{flag} {path} is not writable")
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    """Write ``text`` to a temporary file beside ``path``, then rename it (no half files)."""
+    partial = path.with_name(path.name + ".partial")
+    try:
+        partial.write_text(text)
+        partial.replace(path)
+    except OSError:
+        partial.unlink(missing_ok=True)
+        raise
 
 
 def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:

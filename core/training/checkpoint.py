@@ -13,17 +13,25 @@ A checkpoint is one ``torch.save`` file holding plain data only (loadable with
 | ``step`` | optimiser steps done |
 | ``train_config`` | the :class:`~hkpd.training.config.TrainConfig` as a dict |
 | ``samples_seen`` | training examples seen |
+| ``rng`` | random states (torch CPU and CUDA, numpy, python) at the save, so a resumed run
+  continues bit-exactly (absent in exported weights) |
+| ``checksum`` | SHA-256 of the model tensors' bytes (format 2): a damaged file is refused |
+
+Format 1 files (no checksum) still load.
 """
 
 from __future__ import annotations
 
+import hashlib
+import random
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 FORMAT = "hkpd-checkpoint"
-VERSION = 1
+VERSION = 2
 
 
 class CheckpointError(ValueError):
@@ -63,11 +71,63 @@ def save_checkpoint(
     }
     if optimizer is not None and not half_precision:
         payload["optimizer"] = optimizer.state_dict()
-    path.parent.mkdir(parents=True, exist_ok=True)
+        payload["rng"] = random_states()
+    payload["checksum"] = model_checksum(payload["model"])
     partial = path.with_name(path.name + ".partial")
-    torch.save(payload, partial)
-    partial.replace(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        torch.save(payload, partial)
+        partial.replace(path)
+    except OSError as error:
+        partial.unlink(missing_ok=True)  # never leave a half-written file filling the disk
+        raise OSError(
+            f"cannot write the checkpoint {path} ({error.strerror or error}); free some space "
+            "or choose a writable --out"
+        ) from error
     return path
+
+
+def model_checksum(state: dict[str, torch.Tensor]) -> str:
+    """SHA-256 over the names and raw bytes of a state dict's tensors (sorted by name)."""
+    digest = hashlib.sha256()
+    for key in sorted(state):
+        tensor = state[key].detach().cpu().contiguous()
+        digest.update(key.encode())
+        digest.update(str(tensor.dtype).encode())
+        digest.update(tensor.reshape(-1).view(torch.uint8).numpy().tobytes())
+    return digest.hexdigest()
+
+
+def random_states() -> dict[str, Any]:
+    """Every global random state a training step draws from, as plain data."""
+    numpy_state = np.random.get_state()  # noqa: NPY002 (saving the legacy global state)
+    states: dict[str, Any] = {
+        "torch": torch.get_rng_state(),
+        "numpy": {
+            "keys": torch.from_numpy(numpy_state[1].astype(np.int64)),
+            "position": int(numpy_state[2]),
+            "has_gauss": int(numpy_state[3]),
+            "cached_gaussian": float(numpy_state[4]),
+        },
+        "python": random.getstate(),
+    }
+    if torch.cuda.is_available():
+        states["cuda"] = torch.cuda.get_rng_state_all()
+    return states
+
+
+def restore_random_states(states: dict[str, Any]) -> None:
+    """Inverse of :func:`random_states`."""
+    torch.set_rng_state(states["torch"].cpu())
+    numpy_state = states["numpy"]
+    np.random.set_state((  # noqa: NPY002 (restoring the legacy global state)
+        "MT19937", numpy_state["keys"].numpy().astype(np.uint32), numpy_state["position"],
+        numpy_state["has_gauss"], numpy_state["cached_gaussian"],
+    ))  # fmt: skip
+    python = states["python"]
+    random.setstate((python[0], tuple(python[1]), python[2]))
+    if "cuda" in states and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(states["cuda"])
 
 
 def read_checkpoint(path: Path | str, map_location: str | torch.device = "cpu") -> dict:
@@ -90,6 +150,14 @@ def read_checkpoint(path: Path | str, map_location: str | torch.device = "cpu") 
         raise CheckpointError(
             f"{path} has checkpoint format {payload['version']}; this hkpd reads up to "
             f"{VERSION}. Upgrade hkpd."
+        )
+    if not isinstance(payload.get("model"), dict) or "network_config" not in payload:
+        raise CheckpointError(f"{path} is an hkpd checkpoint without weights or architecture")
+    expected = payload.get("checksum")
+    if expected is not None and model_checksum(payload["model"]) != expected:
+        raise CheckpointError(
+            f"{path} is damaged: its weights do not match the checksum stored with them; "
+            "use another copy (or the previous checkpoint)"
         )
     return payload
 

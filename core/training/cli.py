@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
         keep_freed_memory()  # a long CPU job: reuse big blocks instead of re-faulting them
 
         result = train(config, resume=arguments.resume, show_progress=not arguments.quiet)
-    except (FileNotFoundError, ValueError, FloatingPointError) as error:
+    except (OSError, ValueError, FloatingPointError) as error:
         print(f"hkpd-train: error: {error}", file=sys.stderr)
         return 2
     state = "interrupted" if result.interrupted else "finished"

@@ -98,6 +98,44 @@ class TrainConfig:
     limb_occlusion_probability: float = 0.0
     max_minutes: float | None = None
 
+    def validate(self) -> TrainConfig:
+        """Check every field's range; returns ``self``.
+
+        Raises:
+            ValueError: one line naming the flag, its value and what it must be.
+        """
+        at_least = {"steps": 1, "batch_size": 1, "log_every": 1, "checkpoint_every": 1,
+                    "val_every": 0, "val_size": 1, "data_workers": 0, "num_samples": 1,
+                    "image_size": 32, "backbone_base_width": 1}  # fmt: skip
+        for name, low in at_least.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{_flag(name)} must be an integer >= {low}, got {value!r}")
+        for name in ("learning_rate", "final_learning_rate", "max_minutes"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{_flag(name)} must be a finite number > 0, got {value}")
+        if not (math.isfinite(self.samples_loss_weight) and self.samples_loss_weight >= 0):
+            weight = self.samples_loss_weight
+            raise ValueError(f"--samples-loss-weight must be a finite number >= 0, got {weight}")
+        if not 0.0 <= self.limb_occlusion_probability <= 1.0:
+            raise ValueError(
+                "--limb-occlusion-probability is a probability in [0, 1], got "
+                f"{self.limb_occlusion_probability}"
+            )
+        for name in ("samples_loss_from", "joints3d_loss_from"):
+            if getattr(self, name) < -1:
+                raise ValueError(f"{_flag(name)} must be a step >= 0, or -1 for never")
+        if self.pose_head not in ("hierarchical", "independent"):
+            raise ValueError(
+                f"--pose-head must be 'hierarchical' or 'independent', got {self.pose_head!r}"
+            )
+        if not re.fullmatch(r"auto|cpu|cuda(:\d+)?|mps", self.device):
+            raise ValueError(
+                f"--device must be auto, cpu, cuda, cuda:N or mps, got {self.device!r}"
+            )
+        return self
+
     def to_dict(self) -> dict:
         """Plain JSON-able values (paths as strings)."""
         return {
@@ -127,6 +165,10 @@ class TrainConfig:
         if not path.is_file():
             raise FileNotFoundError(f"training config {path} does not exist")
         return cls.from_dict(json.loads(path.read_text()))
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
 
 
 def learning_rate_at(step: int, config: TrainConfig) -> float:

@@ -34,7 +34,12 @@ from hkpd.synthesis.generator import (
     fixed_test_set,
 )
 from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
-from hkpd.training.checkpoint import load_initial_weights, read_checkpoint, save_checkpoint
+from hkpd.training.checkpoint import (
+    load_initial_weights,
+    read_checkpoint,
+    restore_random_states,
+    save_checkpoint,
+)
 from hkpd.training.config import TrainConfig, learning_rate_at
 from hkpd.training.curves import plot_training_curves
 from hkpd.training.losses import compute_losses
@@ -137,6 +142,47 @@ def _append_csv(path: Path, row: dict[str, float]) -> None:
         writer.writerow(row)
 
 
+def _check_resumable(
+    payload: dict, network_config: NetworkConfig, config: TrainConfig, path: Path
+) -> None:
+    """Refuse a resume that cannot continue: another architecture, or a finished run.
+
+    Raises:
+        ValueError: with what to do instead.
+    """
+    saved = NetworkConfig.from_dict(payload["network_config"]).to_dict()
+    wanted = network_config.to_dict()
+    if saved != wanted:
+        changed = sorted(key for key in saved if saved[key] != wanted.get(key))
+        had = ", ".join(f"{key}={saved[key]}" for key in changed)
+        asked = ", ".join(f"{key}={wanted.get(key)}" for key in changed)
+        raise ValueError(
+            f"--resume: {path} holds a network with {had}, but this run asks for {asked}; drop "
+            "those flags to continue it, or train into a new --out"
+        )
+    if "optimizer" not in payload:
+        raise ValueError(f"--resume: {path} holds exported weights without an optimiser state")
+    if int(payload["step"]) >= config.steps:
+        raise ValueError(
+            f"--resume: the run in {path.parent} already finished ({int(payload['step'])} of "
+            f"--steps {config.steps}); give a larger --steps to train it further"
+        )
+
+
+def _check_csv(path: Path) -> None:
+    """Raise a ValueError when a log to resume has rows but no ``step`` column."""
+    if not path.exists():
+        return
+    with path.open(newline="") as handle:
+        header = next(csv.reader(handle), [])
+        has_rows = next(csv.reader(handle), None) is not None
+    if has_rows and "step" not in header:
+        raise ValueError(
+            f"--resume: {path} has no 'step' column, so it was not written by hkpd-train; "
+            "move it away to continue"
+        )
+
+
 def _truncate_csv(path: Path, last_step: int) -> None:
     """Drop rows after ``last_step`` (a resumed run rewrites them)."""
     if not path.exists():
@@ -161,10 +207,7 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
     """
     from hkpd.evaluation.synthetic import evaluate_batches
 
-    for name in ("learning_rate", "final_learning_rate", "max_minutes"):
-        value = getattr(config, name)
-        if value is not None and not value > 0:
-            raise ValueError(f"--{name.replace('_', '-')} must be positive, got {value}")
+    config.validate()
     _check_paths(config)
     device = resolve_device(config.device)
     out = Path(config.out)
@@ -173,6 +216,18 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         raise FileNotFoundError(f"--resume: no checkpoint at {checkpoint_path}")
     train_poses = pose_source(config.poses, "train")
     val_poses = pose_source(config.poses, "val")
+    network_config = NetworkConfig(
+        backbone_base_width=config.backbone_base_width,
+        pose_head=config.pose_head,
+        image_size=config.image_size,
+        concentration_gain=config.concentration_gain,
+    )
+    payload = None
+    if resume:  # checked before anything in the run folder is written
+        payload = read_checkpoint(checkpoint_path, map_location=device)
+        _check_resumable(payload, network_config, config, checkpoint_path)
+        for log in ("train.csv", "val.csv"):
+            _check_csv(out / log)
     out.mkdir(parents=True, exist_ok=True)
     config.save(out / "config.json")
 
@@ -183,24 +238,19 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
     generator = SyntheticDataGenerator(
         train_poses, data_config, device=device, background_dir=config.backgrounds, body=body
     )
-    network_config = NetworkConfig(
-        backbone_base_width=config.backbone_base_width,
-        pose_head=config.pose_head,
-        image_size=config.image_size,
-        concentration_gain=config.concentration_gain,
-    )
     network = DistributionNetwork(network_config).to(device)
     if config.init_weights is not None and not resume:
         load_initial_weights(network, config.init_weights, device)
     optimizer = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
     step, samples_seen = 0, 0
-    if resume:
-        payload = read_checkpoint(checkpoint_path, map_location=device)
+    if payload is not None:
         network.load_state_dict(payload["model"])
         optimizer.load_state_dict(payload["optimizer"])
         step, samples_seen = int(payload["step"]), int(payload["samples_seen"])
         for log in ("train.csv", "val.csv"):
             _truncate_csv(out / log, step)
+        if "rng" in payload:  # checkpoints before format 2 did not keep them
+            restore_random_states(payload["rng"])
     schedule = build_schedule(config)
     board = _tensorboard_writer(out) if config.tensorboard else None
     use_amp = config.amp and device.type == "cuda"
