@@ -246,7 +246,6 @@ class BodyPosterior:
         return edited
 
 
-
 def _positive_factor(name: str, factor: float) -> float:
     """``factor`` as a float, or a ValueError saying it must be a finite positive number."""
     number = isinstance(factor, (int, float)) and not isinstance(factor, bool)
