@@ -85,6 +85,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="also evaluate the keypoint-evidence posterior (the predictor's default) next to "
         "the network's own, on every requested set",
     )
+    parser.add_argument(
+        "--any-orientation",
+        action="store_true",
+        help="also evaluate on the any-orientation synthetic split (the same test poses, every "
+        "view rolled uniformly, 30 %% seen steeply from above or below)",
+    )
     parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
     parser.add_argument("--device", default="auto")
     parser.add_argument("--out", type=Path, help="also write the markdown report here")
@@ -97,9 +103,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _network_and_test_generator(
-    checkpoint: Path, poses: Path | None, device, augmentation=None
+    checkpoint: Path, poses: Path | None, device, augmentation=None, orientation=None
 ) -> tuple:
-    """The checkpoint's network and a generator of test-split examples at its input size."""
+    """The checkpoint's network and a generator of test-split examples at its input size
+    (upright people unless ``orientation`` says otherwise)."""
     from hkpd.body import BodyModel
     from hkpd.poses import pose_source
     from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
@@ -109,6 +116,8 @@ def _network_and_test_generator(
     config = SyntheticDataConfig(image_size=int(network.config.image_size))
     if augmentation is not None:
         config = replace(config, augmentation=augmentation)
+    if orientation is not None:
+        config = replace(config, orientation=orientation)
     body = BodyModel().to(device)
     generator = SyntheticDataGenerator(pose_source(poses, "test"), config, device, body=body)
     return network, generator
@@ -121,13 +130,18 @@ def evaluate_synthetic(
     samples: int,
     device,
     concentration_scale: float = 1.0,
+    orientation=None,
 ):
     """Metrics of one checkpoint on the fixed synthetic test set (3D in mm, 2D in px at 256),
-    optionally with its F scaled (:mod:`hkpd.evaluation.concentration_scaling`)."""
+    optionally with its F scaled (:mod:`hkpd.evaluation.concentration_scaling`) or on the
+    any-orientation split (``orientation``, e.g.
+    :data:`hkpd.synthesis.orientation.ANY_ORIENTATION`)."""
     from hkpd.evaluation.synthetic import evaluate_batches
     from hkpd.synthesis.generator import iter_fixed_test_set
 
-    network, generator = _network_and_test_generator(checkpoint, poses, device)
+    network, generator = _network_and_test_generator(
+        checkpoint, poses, device, orientation=orientation
+    )
     network = ConcentrationScaled(network, concentration_scale)
     batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
     size = generator.config.image_size
@@ -219,6 +233,14 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             for checkpoint in arguments.checkpoints
             for factor in arguments.concentration_scale
         }
+        if arguments.any_orientation:
+            from hkpd.synthesis.orientation import ANY_ORIENTATION
+
+            for checkpoint in arguments.checkpoints:
+                rows[f"{checkpoint} (any orientation)"] = evaluate_synthetic(
+                    checkpoint, arguments.poses, arguments.count, arguments.samples, device,
+                    orientation=ANY_ORIENTATION,
+                )  # fmt: skip
         source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
         report.append(
             f"### Synthetic test set: {arguments.count} examples, {source}, seed "

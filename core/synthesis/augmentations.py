@@ -46,6 +46,9 @@ class AugmentationConfig:
     bbox_scale_range: tuple[float, float] = (0.8, 1.2)
     limb_occlusion_probability: float = 0.0
     limb_box_margin_px: float = 6.0
+    keypoint_noise_sigma: float = 0.0
+    keypoint_outlier_probability: float = 0.0
+    keypoint_outlier_scale: float = 0.2
 
     @staticmethod
     def disabled() -> AugmentationConfig:
@@ -201,7 +204,18 @@ def remove_joints(
 def jitter_joints(
     keypoints: torch.Tensor, size: int, config: AugmentationConfig, generator: torch.Generator
 ) -> torch.Tensor:
-    """Add uniform noise in ±``joint_noise_px`` (scaled to the crop) to each input keypoint."""
-    amplitude = config.joint_noise_px * size / 256
-    noise = (torch.rand(keypoints.shape, generator=generator) * 2 - 1) * amplitude
+    """Add noise to each input keypoint: uniform in ±``joint_noise_px`` (scaled to the crop),
+    or, with ``keypoint_noise_sigma > 0``, detector-like noise: a Gaussian of that standard
+    deviation (fraction of the crop side) plus ``keypoint_outlier_probability`` outliers
+    displaced uniformly by up to ``keypoint_outlier_scale`` of the crop
+    (:mod:`hkpd.synthesis.detector_noise`)."""
+    if config.keypoint_noise_sigma <= 0:
+        amplitude = config.joint_noise_px * size / 256
+        noise = (torch.rand(keypoints.shape, generator=generator) * 2 - 1) * amplitude
+        return keypoints + noise.to(keypoints.device, keypoints.dtype)
+    noise = torch.randn(keypoints.shape, generator=generator) * config.keypoint_noise_sigma * size
+    outlier = torch.rand(keypoints.shape[:-1], generator=generator)
+    outlier = outlier < config.keypoint_outlier_probability
+    offset = torch.rand(keypoints.shape, generator=generator) * 2 - 1
+    noise = torch.where(outlier[..., None], offset * config.keypoint_outlier_scale * size, noise)
     return keypoints + noise.to(keypoints.device, keypoints.dtype)

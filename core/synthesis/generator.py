@@ -61,6 +61,7 @@ from hkpd.synthesis.augmentations import (
     swap_left_right,
 )
 from hkpd.synthesis.batch import PackedBatch, TrainingBatch
+from hkpd.synthesis.orientation import UPRIGHT, OrientationMix, sample_view_rotation
 from hkpd.synthesis.visibility import keypoint_visibility
 
 
@@ -73,12 +74,15 @@ class SyntheticDataConfig:
         shape_std: standard deviation of the sampled shape coefficients.
         max_camera_pitch_deg: the camera tilts up or down by at most this much.
         augmentation: the supplement's augmentations.
+        orientation: extra rolls and steep views (:mod:`hkpd.synthesis.orientation`); the
+            default adds none (upright people, as in the paper).
     """
 
     image_size: int = CROP_SIZE
     shape_std: float = 1.25
     max_camera_pitch_deg: float = 10.0
     augmentation: AugmentationConfig = field(default_factory=AugmentationConfig)
+    orientation: OrientationMix = UPRIGHT
 
 
 @dataclass
@@ -161,8 +165,11 @@ class SyntheticDataGenerator:
         zeros = torch.zeros(count)
         heading = roma.rotvec_to_rotmat(torch.stack([zeros, yaw, zeros], -1))  # about world up
         tilt = roma.rotvec_to_rotmat(torch.stack([pitch, zeros, zeros], -1))  # about camera x
-        camera_rotation = (tilt @ FRONTAL_GLOBAL_ORIENT @ heading).to(device)
-        global_orient = camera_rotation @ world_orient
+        camera_rotation = tilt @ FRONTAL_GLOBAL_ORIENT @ heading
+        view = sample_view_rotation(count, generator, config.orientation)
+        if view is not None:
+            camera_rotation = view @ camera_rotation
+        global_orient = camera_rotation.to(device) @ world_orient
         betas = (
             torch.randn(count, self.body.num_betas, generator=generator) * config.shape_std
         ).to(device)

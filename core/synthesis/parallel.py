@@ -22,6 +22,7 @@ import torch
 import torch.multiprocessing as multiprocessing
 
 from hkpd.cpu_allocator import keep_freed_memory
+from hkpd.poses.mixed_source import PoseMix
 from hkpd.synthesis.batch import PackedBatch, TrainingBatch
 from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator, batch_seed
 
@@ -35,17 +36,19 @@ class GeneratorSpec:
         split: the pose bank split.
         config: the synthetic data settings.
         backgrounds: optional background image folder.
+        pose_mix: pose families and limb mixes next to the bank's poses (None: the bank).
     """
 
     poses: Path | None = None
     split: str = "train"
     config: SyntheticDataConfig = field(default_factory=SyntheticDataConfig)
     backgrounds: Path | None = None
+    pose_mix: PoseMix | None = None
 
     def build(self, device: str = "cpu") -> SyntheticDataGenerator:
         from hkpd.poses import pose_source
 
-        source = pose_source(self.poses, self.split)
+        source = pose_source(self.poses, self.split, self.pose_mix)
         return SyntheticDataGenerator(source, self.config, device, self.backgrounds)
 
 

@@ -17,6 +17,11 @@ import typing
 from dataclasses import dataclass
 from pathlib import Path
 
+from hkpd.poses.mixed_source import PoseMix
+from hkpd.synthesis.augmentations import AugmentationConfig
+from hkpd.synthesis.generator import SyntheticDataConfig
+from hkpd.synthesis.orientation import OrientationMix
+
 
 @dataclass
 class TrainConfig:
@@ -64,6 +69,19 @@ class TrainConfig:
         data_workers: CPU only: make batches in this many single-threaded worker processes
             (:class:`hkpd.synthesis.parallel.ParallelBatches`); 0 makes them in a background
             thread of the training process.
+        roll_probability: share of training images whose view is rolled about the optical
+            axis by a uniform angle (leaning, lying, upside-down people;
+            :class:`hkpd.synthesis.orientation.OrientationMix`); 0 keeps people upright.
+        steep_view_probability: share of training images seen steeply from above or below.
+        archetype_share: share of training poses drawn from the pose families (sitting,
+            kneeling, lunging, squatting, arms overhead, ...; :mod:`hkpd.poses.archetypes`).
+        limb_mix_share: share of training poses that put one bank pose's legs under another's
+            upper body (:class:`hkpd.poses.mixed_source.MixedPoseSource`).
+        keypoint_noise_sigma: detector-like Gaussian noise on the input keypoints, as a
+            fraction of the crop side (:func:`hkpd.synthesis.augmentations.jitter_joints`);
+            0 keeps the paper's uniform ±8 px.
+        keypoint_outlier_probability: with ``keypoint_noise_sigma``, the share of input
+            keypoints replaced by outliers (up to 20 % of the crop away).
         max_minutes: stop after this many minutes of training steps (setup and the final
             validation come on top), with a checkpoint that ``--resume`` continues, e.g. on a
             machine lent for a fixed time; None runs all ``steps``. The learning-rate schedule
@@ -97,6 +115,12 @@ class TrainConfig:
     concentration_gain: bool = False
     limb_occlusion_probability: float = 0.0
     max_minutes: float | None = None
+    roll_probability: float = 0.0
+    steep_view_probability: float = 0.0
+    archetype_share: float = 0.0
+    limb_mix_share: float = 0.0
+    keypoint_noise_sigma: float = 0.0
+    keypoint_outlier_probability: float = 0.0
 
     def validate(self) -> TrainConfig:
         """Check every field's range; returns ``self``.
@@ -118,10 +142,19 @@ class TrainConfig:
         if not (math.isfinite(self.samples_loss_weight) and self.samples_loss_weight >= 0):
             weight = self.samples_loss_weight
             raise ValueError(f"--samples-loss-weight must be a finite number >= 0, got {weight}")
-        if not 0.0 <= self.limb_occlusion_probability <= 1.0:
+        probabilities = ("limb_occlusion_probability", "roll_probability",
+                         "steep_view_probability", "archetype_share", "limb_mix_share",
+                         "keypoint_outlier_probability")  # fmt: skip
+        for name in probabilities:
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"{_flag(name)} is a probability in [0, 1], got {value}")
+        if self.archetype_share + self.limb_mix_share > 1.0:
+            raise ValueError("--archetype-share and --limb-mix-share add up to more than 1")
+        if not 0.0 <= self.keypoint_noise_sigma < 0.5:
             raise ValueError(
-                "--limb-occlusion-probability is a probability in [0, 1], got "
-                f"{self.limb_occlusion_probability}"
+                f"--keypoint-noise-sigma is a fraction of the crop in [0, 0.5), got "
+                f"{self.keypoint_noise_sigma}"
             )
         for name in ("samples_loss_from", "joints3d_loss_from"):
             if getattr(self, name) < -1:
@@ -135,6 +168,25 @@ class TrainConfig:
                 f"--device must be auto, cpu, cuda, cuda:N or mps, got {self.device!r}"
             )
         return self
+
+    def data_config(self) -> SyntheticDataConfig:
+        """The synthetic data this run trains on (augmentations, orientations)."""
+        augmentation = AugmentationConfig(
+            limb_occlusion_probability=self.limb_occlusion_probability,
+            keypoint_noise_sigma=self.keypoint_noise_sigma,
+            keypoint_outlier_probability=self.keypoint_outlier_probability,
+        )
+        orientation = OrientationMix(
+            roll_probability=self.roll_probability,
+            steep_view_probability=self.steep_view_probability,
+        )
+        return SyntheticDataConfig(
+            image_size=self.image_size, augmentation=augmentation, orientation=orientation
+        )
+
+    def pose_mix(self) -> PoseMix:
+        """The shares of pose families and limb mixes next to the bank's poses."""
+        return PoseMix(archetype_share=self.archetype_share, limb_mix_share=self.limb_mix_share)
 
     def to_dict(self) -> dict:
         """Plain JSON-able values (paths as strings)."""

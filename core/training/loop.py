@@ -26,10 +26,8 @@ from hkpd.devices import resolve_device
 from hkpd.network import DistributionNetwork
 from hkpd.network.config import NetworkConfig
 from hkpd.poses import pose_source
-from hkpd.synthesis.augmentations import AugmentationConfig
 from hkpd.synthesis.generator import (
     SyntheticBatches,
-    SyntheticDataConfig,
     SyntheticDataGenerator,
     fixed_test_set,
 )
@@ -214,8 +212,8 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
     checkpoint_path = out / CHECKPOINT_NAME
     if resume and not checkpoint_path.is_file():
         raise FileNotFoundError(f"--resume: no checkpoint at {checkpoint_path}")
-    train_poses = pose_source(config.poses, "train")
-    val_poses = pose_source(config.poses, "val")
+    train_poses = pose_source(config.poses, "train", config.pose_mix())
+    val_poses = pose_source(config.poses, "val", config.pose_mix())
     network_config = NetworkConfig(
         backbone_base_width=config.backbone_base_width,
         pose_head=config.pose_head,
@@ -233,8 +231,7 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
 
     torch.manual_seed(config.seed)
     body = BodyModel().to(device)
-    augmentation = AugmentationConfig(limb_occlusion_probability=config.limb_occlusion_probability)
-    data_config = SyntheticDataConfig(image_size=config.image_size, augmentation=augmentation)
+    data_config = config.data_config()
     generator = SyntheticDataGenerator(
         train_poses, data_config, device=device, background_dir=config.backgrounds, body=body
     )
@@ -289,7 +286,9 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
         return metrics
 
     if config.data_workers > 0 and device.type == "cpu":
-        spec = GeneratorSpec(config.poses, "train", data_config, config.backgrounds)
+        spec = GeneratorSpec(
+            config.poses, "train", data_config, config.backgrounds, config.pose_mix()
+        )
         stream = ParallelBatches(
             spec, config.batch_size, config.seed, start=step, workers=config.data_workers
         )
