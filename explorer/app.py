@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import viser
 
+from hkpd.distributions import MatrixFisher
 from hkpd.explorer.export import meshes_file, png_bytes
 from hkpd.explorer.panels import ExplorerPanels
 from hkpd.explorer.photo_geometry import (
@@ -27,10 +28,11 @@ from hkpd.explorer.photo_geometry import (
 from hkpd.explorer.posterior_view import PosteriorView, compute_view
 from hkpd.explorer.provider import PosteriorProvider, PredictionResult
 from hkpd.explorer.scene import HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
-from hkpd.explorer.state import ExplorerState
+from hkpd.explorer.state import MAX_OCCLUDERS, ExplorerState
 from hkpd.explorer.upload import UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
 from hkpd.kinematic_tree import body_joint_index
+from hkpd.prediction.keypoint_detector import NoPersonFoundError
 
 PREDICTION_DEBOUNCE_S = 0.12
 """Occluder edits closer together than this trigger one prediction."""
@@ -66,6 +68,7 @@ class ExplorerApp:
         port: TCP port; 0 picks a free one.
         num_samples: samples for the heatmap (default 100).
         num_displayed: sample meshes drawn (default 10).
+        person_box: ``(x0, y0, x1, y1)``: look for the person only there in the first photo.
     """
 
     def __init__(
@@ -77,6 +80,7 @@ class ExplorerApp:
         port: int = 8080,
         num_samples: int = 100,
         num_displayed: int = 10,
+        person_box: tuple[float, float, float, float] | None = None,
     ) -> None:
         image = _check_image(image)
         self.provider = provider
@@ -101,7 +105,8 @@ class ExplorerApp:
         self.server.scene.on_rect_select(modifier="shift")(self._on_rect_select)
         self.server.on_client_connect(lambda client: self._frame_client(client, wait_s=5.0))
         self._plain_drag = False
-        self.state.set_image(image.shape[1], image.shape[0])
+        self._pick_person = False
+        self.state.set_image(image.shape[1], image.shape[0], person_box)
         self.panels.show_occluders((), self.state.image_size)
         self.worker.start()
         self.worker.submit("predict", self._predict_job)
@@ -144,6 +149,24 @@ class ExplorerApp:
 
     def clear_occluders(self) -> None:
         self.occluders_changed(self.state.clear_occluders())
+
+    def set_evidence(self, enabled: bool) -> None:
+        """Condition on the photo's 2D keypoints, or show the network alone (predicts again)."""
+        if self.state.set_evidence(enabled):
+            self.worker.submit("predict", self._predict_job)
+
+    def set_person_box(self, box: tuple[float, float, float, float] | None) -> bool:
+        """Look for the person only inside ``box`` (None: anywhere); predicts again."""
+        changed = self.state.set_person_box(box)
+        if changed:
+            self.scene.show_person_box(self.state.snapshot().person_box)
+            self.worker.submit("predict", self._predict_job)
+        return changed
+
+    def pick_person_next(self, enabled: bool = True) -> None:
+        """The next box dragged on the photo picks the person instead of adding an occluder."""
+        with self._lock:
+            self._pick_person = enabled
 
     def set_plain_drag_draws(self, enabled: bool) -> None:
         """Also draw occluders with a plain left drag (the camera then stops orbiting)."""
@@ -203,12 +226,28 @@ class ExplorerApp:
             camera.aspect,
             placement,
         )
-        if box is None or not self.add_occluder(box):
+        with self._lock:
+            picking, self._pick_person = self._pick_person, False
+        if picking:
+            self.panels.show_picking(False)
+            if box is None or not self.set_person_box(box):
+                self._notify(event.client, "No person box", "Drag a box around the person.")
+            return
+        if box is None:
             self._notify(
                 event.client,
                 "No occluder drawn",
                 "Drag a box over the photo (at least 2 pixels each way).",
             )
+        elif self.state.occluders_full:
+            self._notify(
+                event.client,
+                "No occluder drawn",
+                f"At most {MAX_OCCLUDERS} occluders: delete or reuse one first.",
+                error=True,
+            )
+        elif not self.add_occluder(box):
+            self._notify(event.client, "No occluder drawn", "The box is too small.")
 
     def _on_rect_select_plain(self, event: viser.SceneRectSelectEvent) -> None:
         self._on_rect_select(event)
@@ -219,14 +258,44 @@ class ExplorerApp:
         with self._lock:
             image, token = self._image, self._image_token
         started = time.perf_counter()
-        result = self.provider.predict(image, snapshot.active_boxes)
+        self.panels.show_busy(True)
+        try:
+            result = self.provider.predict(
+                image, snapshot.active_boxes, evidence=snapshot.evidence, bbox=snapshot.person_box
+            )
+        except NoPersonFoundError:
+            self._no_person()
+            return
+        finally:
+            self.panels.show_busy(False)
         self.timings.predict = time.perf_counter() - started
         self._show_prediction(result, image, token)
 
+    def _no_person(self, client: viser.ClientHandle | None = None) -> None:
+        """Tell every tab (or ``client``) how to point at the person."""
+        advice = (
+            "No person was found. Click **Pick the person**, then drag a box around them on "
+            "the photo (or start hkpd-explore with --bbox x0 y0 x1 y1)."
+        )
+        self.panels.show_status(f"**{advice}**")
+        clients = [client] if client is not None else self.server.get_clients().values()
+        for each in clients:
+            self._notify(each, "No person found", advice.replace("**", ""), error=True)
+
     def _image_job(self, image: np.ndarray, name: str, client: viser.ClientHandle | None) -> None:
         started = time.perf_counter()
+        snapshot = self.state.snapshot()
         try:
-            result = self.provider.predict(image, [])
+            result = self.provider.predict(image, [], evidence=snapshot.evidence)
+        except NoPersonFoundError:
+            self._notify(
+                client,
+                "Photo not loaded",
+                f"{name}: no person found. To use it anyway, a person box is needed: start "
+                "hkpd-explore on it with --bbox x0 y0 x1 y1.",
+                error=True,
+            )
+            return
         except Exception as error:  # the predictor's own message says what is wrong
             self._notify(client, "Photo not loaded", f"{name}: {error}", error=True)
             return
@@ -238,6 +307,7 @@ class ExplorerApp:
             self.state.set_image(image.shape[1], image.shape[0])
         snapshot = self.state.snapshot()
         self.panels.show_occluders(snapshot.occluders, snapshot.image_size)
+        self.scene.show_person_box(None)
         self._show_prediction(result, image, token)
         self._notify(client, "Photo loaded", name)
 
@@ -276,8 +346,16 @@ class ExplorerApp:
         with self._lock:
             self._view = view
         index = list(snapshot.concentration_factors)
-        joint_factor = index[body_joint_index(snapshot.selected_joint)]
-        self.panels.show_teaching(view.axes.joint, view.axes.concentrations, joint_factor)
+        joint = body_joint_index(snapshot.selected_joint)
+        joint_factor = index[joint]
+        prior = None
+        network_posterior = result.posterior.prior
+        if network_posterior is not None:
+            prior = joint_factor * MatrixFisher(network_posterior.F[joint].double()).concentration
+        self.panels.show_teaching(
+            view.axes.joint, view.axes.concentrations, joint_factor, prior_concentrations=prior
+        )
+        self.panels.show_source(result.posterior)
         self.panels.show_status(
             f"Prediction {self.timings.predict * 1000:.0f} ms · "
             f"{snapshot.num_samples} samples + heatmap {self.timings.sample * 1000:.0f} ms · "

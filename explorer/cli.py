@@ -1,9 +1,10 @@
-"""``hkpd-explore``: start the explorer web app on a photo, or on the built-in demo scene.
+"""``hkpd-explore``: start the explorer web app on a photo (default: the shipped CC0 photo).
 
 Usage::
 
-    hkpd-explore [IMAGE] [--port 8080] [--host 127.0.0.1] [--no-browser] [--model PATH]
-                 [--device auto] [--samples 100] [--meshes 10]
+    hkpd-explore [IMAGE] [--bbox X0 Y0 X1 Y1] [--demo photo|synthetic] [--port 8080]
+                 [--host 127.0.0.1] [--no-browser] [--model PATH] [--device auto]
+                 [--samples 100] [--meshes 10]
 
 The server binds to 127.0.0.1 unless ``--host`` says otherwise (anyone who can reach the port
 can drive the app and upload files, so a warning is printed). Ctrl-C stops it.
@@ -13,11 +14,14 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.resources
+import math
 import signal
 import sys
 import threading
 import webbrowser
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -33,7 +37,23 @@ def build_parser() -> argparse.ArgumentParser:
         description="See how occlusion and concentration shape the predicted 3D body "
         "distribution, in your browser.",
     )
-    parser.add_argument("image", nargs="?", help="photo of one person (default: built-in demo)")
+    parser.add_argument(
+        "image", nargs="?", help="photo of one person (default: the shipped CC0 photo)"
+    )
+    parser.add_argument(
+        "--demo",
+        choices=("photo", "synthetic"),
+        default="photo",
+        help="without an image: the shipped photo (default) or a scene hkpd renders itself",
+    )
+    parser.add_argument(
+        "--bbox",
+        nargs=4,
+        type=float,
+        metavar=("X0", "Y0", "X1", "Y1"),
+        help="look for the person only inside this box (photo pixels): to pick one of several "
+        "people, or when none is found",
+    )
     parser.add_argument("--port", type=int, default=8080, help="TCP port (default 8080)")
     parser.add_argument("--host", default="127.0.0.1", help="interface to bind (default local)")
     parser.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
@@ -55,17 +75,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _load_photo(path: str | None) -> np.ndarray:
-    if path is None:
+def _load_photo(path: str | None, demo: str = "photo") -> np.ndarray:
+    if path is None and demo == "synthetic":
         from hkpd.explorer.demo_scene import render_demo_scene
 
         return render_demo_scene().image
+    if path is None:
+        path = str(shipped_photo())
     from hkpd.prediction.image_input import ImageInputError, load_image
 
     try:
         return np.ascontiguousarray(load_image(path).pixels)
     except ImageInputError as error:
         raise SystemExit(f"hkpd-explore: cannot use {path!r}: {error}") from None
+
+
+def shipped_photo() -> Path:
+    """The CC0 photo shipped in ``hkpd.assets`` (``assets/photos/NOTICE.md``)."""
+    resource = importlib.resources.files("hkpd.assets").joinpath("photos", "warrior_lunge.jpg")
+    if not resource.is_file():
+        raise SystemExit(
+            "hkpd-explore: the shipped photo is missing from this installation; give a photo "
+            "or use --demo synthetic"
+        )
+    return Path(str(resource))
 
 
 def _build_provider(args: argparse.Namespace) -> PosteriorProvider:
@@ -101,7 +134,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             "explorer and upload files to this machine",
             file=sys.stderr,
         )
-    image = _load_photo(args.image)
+    image = _load_photo(args.image, args.demo)
+    person_box = None
+    if args.bbox is not None:
+        x0, y0, x1, y1 = args.bbox
+        if not (x1 > x0 and y1 > y0) or not all(map(math.isfinite, args.bbox)):
+            raise SystemExit("hkpd-explore: --bbox needs x0 y0 x1 y1 with x1 > x0 and y1 > y0")
+        person_box = (x0, y0, x1, y1)
     provider = _build_provider(args)
 
     from hkpd.explorer.app import ExplorerApp
@@ -113,6 +152,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         port=args.port,
         num_samples=args.samples,
         num_displayed=args.meshes,
+        person_box=person_box,
     )
     # Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (even inside the
     # banner's print) cannot interrupt half-done work; a second Ctrl-C while stopping does.

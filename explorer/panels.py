@@ -29,18 +29,23 @@ EXPONENT_MARKS = ((-1.0, "0.1×"), (0.0, "1×"), (1.0, "10×"))
 
 EXPLANATION = """\
 **What you are looking at.** The photo (left) goes through the network, which predicts a
-*probability distribution* over 3D bodies, not one body. The solid body is the most likely one
-(the mode); the blue ghosts are samples from the distribution; the body on the right is coloured
-by how far its vertices move across 100 samples (blue: certain, red: uncertain).
+*probability distribution* over 3D bodies, not one body. By default that distribution is then
+*conditioned on the 2D keypoints* the detector found (white dots): the network's distribution
+is the prior, the keypoints are the evidence. The solid body is the most likely one (the mode);
+the ghosts are samples from the distribution; the body on the right is coloured by how far its
+vertices move across 100 samples (dark purple: certain, yellow: uncertain; the colour bar gives
+centimetres).
 
-**Try it.** Shift + drag on the photo to hide part of the person behind a box: the network loses
-that evidence, the joints that moved the hidden part become less concentrated, and their limb
-spreads out and turns red. The sliders scale each joint's *concentration* by hand.
+**Try it.** Shift + drag on the photo to hide part of the person behind a box: the keypoints
+under it stop counting as evidence, the joints that moved the hidden part fall back to the
+network's (wider) prior, and their limb spreads out and turns yellow. Untick *Condition on 2D
+keypoints* to see the network alone. The sliders scale each joint's *concentration* by hand.
 
 **The maths.** Each joint's rotation relative to its parent follows a matrix-Fisher
 distribution with parameter F = U S V&#x1D40;. The arrows at the selected joint are its principal
 axes; the numbers are the concentrations s&#x2C7C; + s&#x2096; for rotations about each axis:
-large means confident.
+large means confident. Conditioning adds the keypoints' evidence to the network's F (Teaching:
+*network* vs *with evidence*).
 """
 
 
@@ -55,6 +60,7 @@ class ExplorerPanels:
         state = app.state
         gui.configure_theme(control_width="large", show_logo=False, show_share_button=False)
         self.status = gui.add_markdown("Starting…")
+        self.source = gui.add_markdown("")
 
         with gui.add_folder("Photo and occluders"):
             self.upload = gui.add_upload_button(
@@ -64,6 +70,21 @@ class ExplorerPanels:
                 hint="JPEG/PNG/WebP/BMP/TIFF up to 25 MiB",
             )
             self.upload.on_upload(self._on_upload)
+            self.evidence = gui.add_checkbox(
+                "Condition on 2D keypoints",
+                state.evidence,
+                hint="On: the network's distribution updated by the detected keypoints (default). "
+                "Off: the network alone (the paper's method).",
+            )
+            self.evidence.on_update(lambda _: app.set_evidence(self.evidence.value))
+            self.pick = gui.add_button(
+                "Pick the person",
+                icon=viser.Icon.USER,
+                hint="Then drag a box around the person on the photo (Shift + drag)",
+            )
+            self.pick.on_click(lambda _: self._start_picking())
+            forget = gui.add_button("Forget the person box", icon=viser.Icon.X)
+            forget.on_click(lambda _: app.set_person_box(None))
             gui.add_markdown("*Shift + drag on the photo draws an occluder.*")
             self.draw_mode = gui.add_checkbox(
                 "Plain drag draws",
@@ -172,6 +193,34 @@ class ExplorerPanels:
         uploaded = self.upload.value
         self.app.load_upload(uploaded.name, uploaded.content, event.client)
 
+    def _start_picking(self) -> None:
+        self.app.pick_person_next(True)
+        self.show_picking(True)
+
+    def show_picking(self, picking: bool) -> None:
+        """Say in the status line that the next drag picks the person."""
+        if picking:
+            self.status.content = "**Drag a box around the person** (Shift + drag on the photo)."
+
+    def show_busy(self, busy: bool) -> None:
+        """Say that a prediction is running (it can take a second on a CPU)."""
+        if busy:
+            self.status.content = "⏳ *Predicting…*"
+
+    def show_source(self, posterior) -> None:
+        """Which distribution is shown, and why when the evidence fit fell back."""
+        reason = getattr(posterior, "fallback_reason", None)
+        if reason:
+            self.source.content = f"*Network only: {reason}.*"
+        elif getattr(posterior, "conditioned", False):
+            fit = posterior.evidence_fit
+            self.source.content = (
+                f"*Conditioned on {fit.evidence_count} keypoints "
+                f"(fit {fit.seconds * 1000:.0f} ms).*"
+            )
+        else:
+            self.source.content = "*Network only.*"
+
     def _reset_concentrations(self) -> None:
         changed = self.app.state.reset_concentrations()
         for slider in (self.global_slider, self.shape_slider, *self.joint_sliders.values()):
@@ -263,17 +312,33 @@ class ExplorerPanels:
 
         return callback
 
-    def show_teaching(self, joint: str, concentrations: np.ndarray, factor: float) -> None:
-        """Numbers for the selected joint's principal axes."""
+    def show_teaching(
+        self,
+        joint: str,
+        concentrations: np.ndarray,
+        factor: float,
+        prior_concentrations: np.ndarray | torch.Tensor | None = None,
+    ) -> None:
+        """Numbers for the selected joint's principal axes (and the network's own, when the
+        distribution is conditioned on the keypoints, so a class sees what the evidence adds).
+        """
         names = ("red", "green", "blue")
-        rows = "\n".join(
-            f"| {name} | {value:,.1f} |" for name, value in zip(names, concentrations, strict=True)
-        )
-        self.axes_text.content = (
-            f"**{joint.replace('_', ' ')}** (factor {factor:.2g}×): concentration "
-            f"s&#x2C7C; + s&#x2096; about each principal axis\n\n| axis | concentration |\n"
-            f"|---|---|\n{rows}"
-        )
+        title = f"**{joint.replace('_', ' ')}** (factor {factor:.2g}×): concentration "
+        title += "s&#x2C7C; + s&#x2096; about each principal axis"
+        if prior_concentrations is None:
+            rows = "\n".join(
+                f"| {name} | {value:,.1f} |"
+                for name, value in zip(names, concentrations, strict=True)
+            )
+            table = f"| axis | concentration |\n|---|---|\n{rows}"
+        else:
+            prior = sorted(np.asarray(prior_concentrations, dtype=float).tolist())
+            rows = "\n".join(
+                f"| {name} | {value:,.1f} | {base:,.1f} |"
+                for name, value, base in zip(names, concentrations, prior, strict=True)
+            )
+            table = f"| axis | with evidence | network (sorted) |\n|---|---|---|\n{rows}"
+        self.axes_text.content = f"{title}\n\n{table}"
 
     def show_proxy(self, proxy: torch.Tensor | None) -> None:
         """The proxy representation the network saw: the edge image and the heatmaps."""

@@ -37,12 +37,20 @@ class PredictionResult:
 class PosteriorProvider(Protocol):
     """Anything that turns a photo and occluder boxes into a :class:`PredictionResult`."""
 
-    def predict(self, image: np.ndarray, occluders: Sequence[Box]) -> PredictionResult:
+    def predict(
+        self,
+        image: np.ndarray,
+        occluders: Sequence[Box],
+        evidence: bool = True,
+        bbox: Box | None = None,
+    ) -> PredictionResult:
         """Predict for ``image`` ``(H, W, 3)`` uint8 RGB with ``occluders`` painted black.
 
         Args:
             image: the photo, original pixels.
             occluders: ``(x0, y0, x1, y1)`` boxes in the photo's pixels (may be empty).
+            evidence: condition on the photo's 2D keypoints (else the network alone).
+            bbox: look for the person only inside this box (None: anywhere).
         """
         ...
 
@@ -59,7 +67,13 @@ class PredictorProvider:
 
         self.predictor: Any = Predictor.from_pretrained(path, device=device)
 
-    def predict(self, image: np.ndarray, occluders: Sequence[Box]) -> PredictionResult:
+    def predict(
+        self,
+        image: np.ndarray,
+        occluders: Sequence[Box],
+        evidence: bool = True,
+        bbox: Box | None = None,
+    ) -> PredictionResult:
         boxes = [tuple(map(float, box)) for box in occluders] or None
-        posterior = self.predictor.predict(image, occluders=boxes)
+        posterior = self.predictor.predict(image, occluders=boxes, bbox=bbox, evidence=evidence)
         return PredictionResult(posterior=posterior, proxy=posterior.network_input.proxy.cpu())

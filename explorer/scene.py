@@ -62,6 +62,7 @@ class ExplorerScene:
         self._heat_base: viser.MeshHandle | None = None
         self._heat_points: viser.PointCloudHandle | None = None
         self._occluder_nodes: list[viser.SceneNodeHandle] = []
+        self._person_node: viser.SceneNodeHandle | None = None
         server.scene.set_up_direction("+y")
         server.scene.world_axes.visible = False
         self.scene_body = server.scene.add_frame(
@@ -121,8 +122,19 @@ class ExplorerScene:
 
     # ------------------------------------------------------------------ photo
     def place_photo(self, image: np.ndarray, placement: PhotoPlacement) -> None:
-        """Show a new photo (``(H, W, 3)`` uint8) at ``placement``; clears overlays."""
+        """Show a new photo (``(H, W, 3)`` uint8) at ``placement``; clears overlays.
+
+        Occluders belong to their photo: the old photo's boxes are removed from the scene
+        (replacing the ``/photo`` node keeps its children, in this tab and in tabs opened
+        later, so they must be removed by hand).
+        """
         with self._lock:
+            for node in self._occluder_nodes:
+                node.remove()
+            self._occluder_nodes = []
+            if self._person_node is not None:
+                self._person_node.remove()
+                self._person_node = None
             self.placement = placement
             self.server.scene.add_image(
                 "/photo",
@@ -162,6 +174,23 @@ class ExplorerScene:
                 point_shading="flat",
             )
 
+    def show_person_box(self, box: tuple[float, float, float, float] | None) -> None:
+        """Outline the box the person is looked for in (None removes it)."""
+        with self._lock:
+            if self._person_node is not None:
+                self._person_node.remove()
+                self._person_node = None
+            if box is None or self.placement is None:
+                return
+            x0, y0, x1, y1 = box
+            corners = self._photo_points(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]) - 0.5)
+            edges = np.stack([corners, np.roll(corners, -1, axis=0)], axis=1)
+            edges[:, :, 2] = 3 * OVERLAY_LIFT
+            self._person_node = self.server.scene.add_line_segments(
+                "/photo/person_box", edges, (40, 200, 255), thickness=3.0,
+                thickness_units="screen",
+            )  # fmt: skip
+
     def show_occluders(self, occluders: tuple[Occluder, ...]) -> None:
         """Draw every occluder: enabled ones dark and filled, disabled ones as outlines."""
         with self._lock:
@@ -177,6 +206,9 @@ class ExplorerScene:
                 )
                 corners[:, 2] = 2 * OVERLAY_LIFT
                 name = f"/photo/occluders/{occluder.ident}"
+                # One frame per box, so that removing it removes the whole box (fill, outline,
+                # label) from the scene, also for tabs that connect later.
+                self._occluder_nodes.append(self.server.scene.add_frame(name, show_axes=False))
                 if occluder.enabled:
                     self._occluder_nodes.append(
                         self.server.scene.add_mesh_simple(

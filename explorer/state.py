@@ -96,6 +96,8 @@ class StateSnapshot:
     selected_joint: str
     prediction_version: int
     sampling_version: int
+    evidence: bool = True
+    person_box: tuple[float, float, float, float] | None = None
 
     @property
     def active_boxes(self) -> list[tuple[float, float, float, float]]:
@@ -126,6 +128,8 @@ class ExplorerState:
     num_displayed: int = 10
     seed: int = 0
     selected_joint: str = "left_elbow"
+    evidence: bool = True
+    person_box: tuple[float, float, float, float] | None = None
     _occluders: list[Occluder] = field(default_factory=list)
     _joint_exponents: list[float] = field(default_factory=lambda: [0.0] * NUM_BODY_JOINTS)
     _global_exponent: float = 0.0
@@ -151,6 +155,8 @@ class ExplorerState:
                 selected_joint=self.selected_joint,
                 prediction_version=self._prediction_version,
                 sampling_version=self._sampling_version,
+                evidence=self.evidence,
+                person_box=self.person_box,
             )
 
     def occluder(self, ident: int) -> Occluder:
@@ -159,14 +165,44 @@ class ExplorerState:
             return self._occluders[self._position(ident)]
 
     # ------------------------------------------------------------------ photo
-    def set_image(self, width: int, height: int) -> None:
-        """A new photo: its size, no occluders; concentration edits are kept."""
+    def set_image(
+        self, width: int, height: int, person_box: tuple[float, float, float, float] | None = None
+    ) -> None:
+        """A new photo: its size, no occluders and no person box (they belong to the old
+        photo) unless ``person_box`` is given; concentration edits are kept."""
         if width < 1 or height < 1:
             raise ValueError(f"image size must be positive, got {width}x{height}")
         with self._lock:
             self.image_size = (int(width), int(height))
             self._occluders.clear()
+            self.person_box = None if person_box is None else clamp_box(person_box, width, height)
             self._prediction_version += 1
+
+    def set_person_box(self, box: tuple[float, float, float, float] | None) -> bool:
+        """Look for the person only inside ``box`` (photo pixels; None: anywhere). False if
+        unchanged or the box is too small."""
+        with self._lock:
+            clamped = None if box is None else clamp_box(box, *self.image_size)
+            if (box is not None and clamped is None) or clamped == self.person_box:
+                return False
+            self.person_box = clamped
+            self._prediction_version += 1
+            return True
+
+    def set_evidence(self, enabled: bool) -> bool:
+        """Condition on the photo's 2D keypoints (True) or show the network alone."""
+        with self._lock:
+            if self.evidence == bool(enabled):
+                return False
+            self.evidence = bool(enabled)
+            self._prediction_version += 1
+            return True
+
+    @property
+    def occluders_full(self) -> bool:
+        """True when no further occluder can be added."""
+        with self._lock:
+            return len(self._occluders) >= MAX_OCCLUDERS
 
     # ------------------------------------------------------------------ occluders
     def add_occluder(self, box: tuple[float, float, float, float]) -> Occluder | None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import re
 from pathlib import PurePath
 
 import numpy as np
@@ -52,8 +53,16 @@ def decode_upload(name: str, content: bytes) -> np.ndarray:
             loaded = load_image(opened)
     except (UnidentifiedImageError, OSError) as error:
         raise UploadError(
-            f"{name!r} could not be read as an image (corrupt or not a photo): {error}"
+            f"{name!r} could not be read as an image (corrupt, truncated or not a photo)"
         ) from error
     except ImageInputError as error:  # readable, but unusable (e.g. too small)
-        raise UploadError(f"{name!r} cannot be used: {error}") from error
+        raise UploadError(f"{name!r} cannot be used: {_plain_reason(error)}") from error
     return np.ascontiguousarray(loaded.pixels)
+
+
+_INTERNAL_LABELS = re.compile(r"^(array \([^)]*\) \w+|PIL image[^:]*|<[^>]*>):\s*")
+
+
+def _plain_reason(error: Exception) -> str:
+    """The reason without the in-memory source label (``array (480, 640, 3) uint8: ...``)."""
+    return _INTERNAL_LABELS.sub("", str(error))

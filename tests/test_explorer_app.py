@@ -129,8 +129,42 @@ def test_export_sends_the_mode_and_samples(app):
 class NoPersonProvider:
     """A provider that fails the way a predictor does on a photo without a person."""
 
-    def predict(self, image, occluders):
+    def predict(self, image, occluders, evidence=True, bbox=None):
         raise ValueError("no person found in the photo")
+
+
+class FindsNobodyUnlessBoxed:
+    """Raises the detector's NoPersonFoundError until given a person box; records calls."""
+
+    def __init__(self) -> None:
+        self.double = OcclusionAwareDouble()
+        self.calls: list[tuple[bool, object]] = []
+
+    def predict(self, image, occluders, evidence=True, bbox=None):
+        from hkpd.prediction.keypoint_detector import NoPersonFoundError
+
+        self.calls.append((evidence, bbox))
+        if bbox is None:
+            raise NoPersonFoundError("photo: no person found")
+        return self.double.predict(image, occluders, evidence, bbox)
+
+
+def test_no_person_says_how_to_pick_one_and_a_person_box_predicts_there():
+    provider = FindsNobodyUnlessBoxed()
+    explorer = ExplorerApp(provider, provider.double.scene.image, port=0)
+    try:
+        assert explorer.wait_idle(30)
+        assert "Pick the person" in explorer.panels.status.content and explorer.view is None
+        assert not explorer.errors  # an expected situation, not a failure
+        assert explorer.set_person_box((20, 20, 300, 500))
+        assert explorer.wait_idle(30)
+        assert provider.calls[-1] == (True, (20.0, 20.0, 300.0, 500.0))
+        assert explorer.view is not None
+        explorer.set_evidence(False)
+        assert explorer.wait_idle(30)
+        assert provider.calls[-1][0] is False
+    finally:
+        explorer.stop()
 
 
 def test_a_failing_prediction_is_reported_and_the_server_keeps_running():
@@ -172,6 +206,8 @@ def test_cli_serves_the_demo_and_stops_cleanly_on_ctrl_c():
             "0.0.0.0",
             "--provider",
             "test_explorer_double:OcclusionAwareDouble",
+            "--demo",
+            "synthetic",
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -192,3 +228,20 @@ def test_cli_serves_the_demo_and_stops_cleanly_on_ctrl_c():
     assert process.returncode == 0, err
     assert "stopping" in out and "Traceback" not in err
     assert "warning: binding to 0.0.0.0" in err
+
+
+def test_a_new_photo_takes_the_old_photos_occluders_away(app):
+    """Occluders belong to their photo: none stays drawn (or listed) after a new one loads."""
+    scene = app.double.scene
+    assert app.add_occluder((10, 10, 60, 60))
+    assert app.wait_idle(30)
+    names = app.server.scene._handle_from_node_name
+    assert any(name.startswith("/photo/occluders/") for name in names)
+    client = RecordingClient()
+    app._image_job(scene.image[:, ::-1].copy(), "mirrored.png", client)
+    assert app.wait_idle(30)
+    assert app.state.snapshot().occluders == ()
+    assert not [n for n in app.server.scene._handle_from_node_name if "/occluders/" in n]
+    assert ("Photo loaded", "mirrored.png") in client.notifications
+    app._image_job(scene.image, "demo.png", client)  # back to the first photo for later tests
+    assert app.wait_idle(30)

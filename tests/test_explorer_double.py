@@ -87,7 +87,13 @@ class OcclusionAwareDouble:
         scale = solution[0]
         return torch.tensor([scale, solution[1] / scale, solution[2] / scale], dtype=torch.float32)
 
-    def predict(self, image: np.ndarray, occluders: Sequence[Sequence[float]]) -> PredictionResult:
+    def predict(
+        self,
+        image: np.ndarray,
+        occluders: Sequence[Sequence[float]],
+        evidence: bool = True,
+        bbox: Sequence[float] | None = None,
+    ) -> PredictionResult:
         self.calls += 1
         boxes = [tuple(map(float, b)) for b in occluders]
         covered = covered_keypoints(self.scene.keypoints2d, boxes)
