@@ -32,6 +32,7 @@ from hkpd.explorer.state import MAX_OCCLUDERS, ExplorerState
 from hkpd.explorer.upload import UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
 from hkpd.kinematic_tree import body_joint_index
+from hkpd.prediction.fit_overlay import FitOverlay, render_fit_overlay
 from hkpd.prediction.keypoint_detector import NoPersonFoundError
 
 PREDICTION_DEBOUNCE_S = 0.12
@@ -106,6 +107,8 @@ class ExplorerApp:
         self.server.on_client_connect(lambda client: self._frame_client(client, wait_s=5.0))
         self._plain_drag = False
         self._pick_person = False
+        self._overlay: FitOverlay | None = None
+        self._fit_visible, self._fit_opacity = True, 0.55
         self.state.set_image(image.shape[1], image.shape[0], person_box)
         self.panels.show_occluders((), self.state.image_size)
         self.worker.start()
@@ -149,6 +152,16 @@ class ExplorerApp:
 
     def clear_occluders(self) -> None:
         self.occluders_changed(self.state.clear_occluders())
+
+    def show_fit(self, visible: bool, opacity: float) -> None:
+        """Show (or hide) the mode mesh over the photo at ``opacity``."""
+        with self._lock:
+            self._fit_visible, self._fit_opacity = bool(visible), float(opacity)
+            overlay = self._overlay
+        if overlay is None or not visible:
+            self.scene.show_fit_overlay(None, None)
+        else:
+            self.scene.show_fit_overlay(overlay.with_opacity(opacity), overlay.box)
 
     def set_evidence(self, enabled: bool) -> None:
         """Condition on the photo's 2D keypoints, or show the network alone (predicts again)."""
@@ -325,6 +338,11 @@ class ExplorerApp:
             self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
             self._frame_camera(placement)
         self.scene.show_occluders(self.state.snapshot().occluders)
+        overlay = _fit_overlay(posterior)
+        with self._lock:
+            self._overlay = overlay
+            visible, opacity = self._fit_visible, self._fit_opacity
+        self.show_fit(visible, opacity)
         self.scene.show_keypoints(
             posterior.keypoints.cpu().numpy(), posterior.confidences.cpu().numpy()
         )
@@ -469,6 +487,15 @@ def photo_placement(result: PredictionResult, width: int, height: int) -> PhotoP
     width_m = height_m * width / height
     centre_x = -(PHOTO_GAP + width_m / 2)
     return PhotoPlacement(width, height, (centre_x, float(centre_y), 0.0), height_m)
+
+
+def _fit_overlay(posterior) -> FitOverlay | None:
+    """The mode drawn over the photo, or None for a posterior without a body model or crop
+    (a custom provider's)."""
+    try:
+        return render_fit_overlay(posterior)
+    except (AttributeError, TypeError, ValueError):
+        return None
 
 
 def _check_image(image: np.ndarray) -> np.ndarray:

@@ -150,6 +150,16 @@ class ExplorerPanels:
             self.show_samples = gui.add_checkbox("Show sample meshes", True)
             self.show_heatmap = gui.add_checkbox("Show uncertainty body", True)
             self.show_reprojection = gui.add_checkbox("Show 2D reprojection", True)
+            self.show_fit = gui.add_checkbox(
+                "Show the fit on the photo",
+                True,
+                hint="The most likely body drawn over the person with the predicted camera",
+            )
+            self.fit_opacity = gui.add_slider("Fit opacity", 0.0, 1.0, 0.05, 0.55)
+            for control in (self.show_fit, self.fit_opacity):
+                control.on_update(
+                    lambda _: app.show_fit(self.show_fit.value, self.fit_opacity.value)
+                )
             for box in (self.show_samples, self.show_heatmap, self.show_reprojection):
                 box.on_update(lambda _: self._display_options())
             self.heat_max = gui.add_slider("Colour scale top (cm)", 2.0, 40.0, 1.0, DEFAULT_MAX_CM)

@@ -63,6 +63,7 @@ class ExplorerScene:
         self._heat_points: viser.PointCloudHandle | None = None
         self._occluder_nodes: list[viser.SceneNodeHandle] = []
         self._person_node: viser.SceneNodeHandle | None = None
+        self._fit_node: viser.SceneNodeHandle | None = None
         server.scene.set_up_direction("+y")
         server.scene.world_axes.visible = False
         self.scene_body = server.scene.add_frame(
@@ -173,6 +174,26 @@ class ExplorerScene:
                 point_shape="circle",
                 point_shading="flat",
             )
+
+    def show_fit_overlay(
+        self, rgba: np.ndarray | None, box: tuple[float, float, float, float] | None
+    ) -> None:
+        """The mode mesh rendered with the predicted camera, pasted over the photo's crop box
+        (``rgba (S, S, 4)`` uint8, ``box`` in photo pixels); None hides it."""
+        with self._lock:
+            if self._fit_node is not None:
+                self._fit_node.remove()
+                self._fit_node = None
+            if rgba is None or box is None or self.placement is None:
+                return
+            x0, y0, x1, y1 = box
+            centre = self._photo_points(np.array([[(x0 + x1) / 2, (y0 + y1) / 2]]) - 0.5)[0]
+            centre[2] = 1.5 * OVERLAY_LIFT
+            side_m = (x1 - x0) * self.placement.metres_per_pixel
+            self._fit_node = self.server.scene.add_image(
+                "/photo/fit", rgba, side_m, side_m, format="png", position=tuple(centre),
+                cast_shadow=False, receive_shadow=False,
+            )  # fmt: skip
 
     def show_person_box(self, box: tuple[float, float, float, float] | None) -> None:
         """Outline the box the person is looked for in (None removes it)."""

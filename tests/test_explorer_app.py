@@ -245,3 +245,12 @@ def test_a_new_photo_takes_the_old_photos_occluders_away(app):
     assert ("Photo loaded", "mirrored.png") in client.notifications
     app._image_job(scene.image, "demo.png", client)  # back to the first photo for later tests
     assert app.wait_idle(30)
+
+
+def test_the_fit_overlay_is_drawn_on_the_photo_and_can_be_hidden(app):
+    assert app._overlay is not None
+    assert "/photo/fit" in app.server.scene._handle_from_node_name
+    app.show_fit(False, 0.5)
+    assert "/photo/fit" not in app.server.scene._handle_from_node_name
+    app.show_fit(True, 0.5)
+    assert "/photo/fit" in app.server.scene._handle_from_node_name

@@ -396,3 +396,20 @@ def test_an_occluder_removes_its_keypoints_from_the_evidence_not_from_the_detect
         covered.network_input.detection.keypoints, clean.network_input.detection.keypoints
     )
     assert not covered.network_input.proxy[1 + 16].any()  # no heatmap for the hidden ankle
+
+
+def test_fit_overlay_draws_the_mode_where_its_keypoints_reproject(
+    scene, checkpoint, fake_predictor_factory
+):
+    from hkpd.prediction.fit_overlay import render_fit_overlay
+
+    posterior = fake_predictor_factory(checkpoint, "cpu").predict(scene.image)
+    overlay = render_fit_overlay(posterior, size=200)
+    assert overlay.rgba.shape == (200, 200, 4) and overlay.box == posterior.crop.box
+    alpha = overlay.rgba[..., 3]
+    assert 0.02 < (alpha > 0).mean() < 0.9
+    x0, y0, x1, y1 = overlay.box
+    torso = posterior.mode().keypoints2d[0, [5, 6, 11, 12]].numpy()
+    pixels = np.floor((torso - [x0, y0]) / (x1 - x0) * 200).astype(int)
+    assert all(alpha[v, u] > 0 for u, v in pixels)  # shoulders and hips fall on the body
+    assert (overlay.with_opacity(0.5)[..., 3].max()) == 128
