@@ -408,7 +408,7 @@ def test_fit_overlay_draws_the_mode_where_its_keypoints_reproject(
     assert overlay.rgba.shape == (200, 200, 4) and overlay.box == posterior.crop.box
     alpha = overlay.rgba[..., 3]
     assert 0.02 < (alpha > 0).mean() < 0.9
-    x0, y0, x1, y1 = overlay.box
+    x0, y0, x1, _ = overlay.box
     torso = posterior.mode().keypoints2d[0, [5, 6, 11, 12]].numpy()
     pixels = np.floor((torso - [x0, y0]) / (x1 - x0) * 200).astype(int)
     assert all(alpha[v, u] > 0 for u, v in pixels)  # shoulders and hips fall on the body
