@@ -91,6 +91,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="also evaluate on the any-orientation synthetic split (the same test poses, every "
         "view rolled uniformly, 30 %% seen steeply from above or below)",
     )
+    parser.add_argument(
+        "--detector-errors",
+        action="store_true",
+        help="with --coco: also measure BlazePose against the human keypoints (jitter, misses, "
+        "swaps, outliers; the numbers behind the detector-like noise)",
+    )
     parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
     parser.add_argument("--device", default="auto")
     parser.add_argument("--out", type=Path, help="also write the markdown report here")
@@ -291,6 +297,8 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
                     rows[name] = evaluate_photos(predictor, people, evidence=evidence)
                     occlusion_rows[name] = photo_occlusion_response(predictor, people, evidence)
             predictor.close()
+        if arguments.detector_errors:
+            report.append(_detector_error_table(load_coco_people(arguments.coco, 6), arguments))
         columns = list(next(iter(rows.values())))
         report.append(
             f"### Real photos: {arguments.coco} ({len(people)} people with >= 12 visible "
@@ -321,6 +329,35 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             + markdown_table(rows, list(next(iter(rows.values()))))
         )
     return "\n".join(report)
+
+
+def _detector_error_table(people: list, arguments: argparse.Namespace) -> str:
+    """BlazePose against the human keypoints (people with >= 6 visible keypoints)."""
+    from hkpd.evaluation.detector_errors import detector_errors
+    from hkpd.prediction.keypoint_detector import KeypointDetector
+
+    if arguments.coco_split:
+        people = [p for p in people if p.image_path.parent.name == arguments.coco_split]
+    detector = KeypointDetector()
+    try:
+        stats = detector_errors(detector, people)
+    finally:
+        detector.close()
+    summary = {
+        "jitter sigma (person size)": stats.sigma,
+        "misses": stats.miss_rate,
+        "left/right swaps": stats.swap_rate,
+        "outliers (> 20 %)": stats.outlier_rate,
+        "people": float(stats.people),
+        "keypoints": float(stats.keypoints),
+    }
+    medians = {"median error (person size)": stats.per_keypoint_median}
+    return (
+        f"### BlazePose against the human keypoints ({arguments.coco_split or 'all splits'})\n\n"
+        + markdown_table({"BlazePose": summary}, list(summary))
+        + "\n\n"
+        + markdown_table(medians, list(stats.per_keypoint_median))
+    )
 
 
 def _row_name(checkpoint: Path, factor: float, scales: list[float]) -> str:
