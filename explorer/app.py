@@ -46,6 +46,9 @@ FREE_CANVAS_FRACTION = 0.7
 its canvas size)."""
 PANEL_WIDTH_PX = 420
 """Width of viser's floating panel ("large" controls) plus its margin, CSS pixels."""
+BODY_HALF_SPAN_M = 0.95
+"""Half the arm span the framing leaves room for right of the uncertainty body's centre
+(outstretched arms reach ~0.85 m), so its hand never goes under the panel."""
 SCREENSHOT_SIZE = (720, 1280)
 """``(height, width)`` of the screenshot requested from the browser."""
 
@@ -455,7 +458,7 @@ def framing(
         free_fraction: part of the canvas width left of the floating panel.
     """
     left = placement.centre[0] - placement.width_m / 2 - 0.1
-    right = HEATMAP_OFFSET + 0.5
+    right = HEATMAP_OFFSET + BODY_HALF_SPAN_M
     top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.25
     bottom = min(placement.centre[1] - placement.height_m / 2, -1.25) - 0.1
     tan_v = math.tan(math.radians(CAMERA_FOV_DEG) / 2)

@@ -31,10 +31,11 @@ HEATMAP_BASE_COLOUR = (70, 95, 165)
 AXIS_COLOURS = np.array([[230, 60, 60], [60, 180, 75], [60, 110, 230]], dtype=np.uint8)
 
 BODY_POSITION = (0.0, 0.0, 0.0)
-HEATMAP_OFFSET = 0.95
-"""Metres between the sample body and the heatmap body."""
-PHOTO_GAP = 0.5
-"""Metres between the photo's right edge and the body's centre."""
+HEATMAP_OFFSET = 1.75
+"""Metres between the sample body and the heatmap body (an arm span, ~1.7 m, so that
+outstretched arms and their samples never overlap)."""
+PHOTO_GAP = 0.9
+"""Metres between the photo's right edge and the body's centre (half an arm span)."""
 LEGEND_HEIGHT = -1.12
 """World height of the colour bar's centre."""
 OVERLAY_LIFT = -0.004
