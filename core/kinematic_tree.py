@@ -2,12 +2,16 @@
 
 Joint 0 (``pelvis``) is the root; its rotation is the *global* rotation. The remaining 23 joints
 are the *body* joints whose rotations, relative to their parents, make up the pose. Every parent
-index is smaller than its child's, so iterating in index order visits parents first.
+index is smaller than its child's, so iterating in index order visits parents first. It also holds
+the tree's rotation arithmetic (:func:`compose_global_rotations`), which the distributions and the
+body model share.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+
+import torch
 
 SMPL_JOINT_NAMES: tuple[str, ...] = (
     "pelvis",
@@ -131,3 +135,45 @@ def body_joint_index(joint: int | str) -> int:
     if not 0 <= int(joint) < len(BODY_JOINT_NAMES):
         raise IndexError(f"joint index {joint} is outside 0..{len(BODY_JOINT_NAMES) - 1}")
     return int(joint)
+
+
+def compose_global_rotations(
+    relative: torch.Tensor, parents: Sequence[int], root: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Forward kinematics of rotations: relative joint rotations to global ones.
+
+    ``global_j = global_{parent(j)} @ relative_j``, with the root frame's rotation ``root`` for
+    joints whose parent is -1. Joints at the same tree depth are composed in one batched
+    product, so the loop runs over depth levels (9 for SMPL), not joints.
+
+    Args:
+        relative: ``(..., J, 3, 3)`` rotations of each joint relative to its parent.
+        parents: length-J parents (-1 = attached to the root frame), parents before children.
+        root: optional ``(..., 3, 3)`` root (global) rotation, broadcastable; identity if None.
+
+    Returns:
+        ``(..., J, 3, 3)`` global rotations.
+    """
+    parent_list = validate_parents(parents)
+    if relative.shape[-3:] != (len(parent_list), 3, 3):
+        raise ValueError(
+            f"relative rotations must have shape (..., {len(parent_list)}, 3, 3), "
+            f"got {tuple(relative.shape)}"
+        )
+    if root is not None:
+        batch = torch.broadcast_shapes(relative.shape[:-3], root.shape[:-2])
+        relative = relative.expand(*batch, *relative.shape[-3:])
+        root = root.expand(*batch, 3, 3)
+    global_rot = relative.clone()
+    for level in depth_levels(parent_list):
+        index = torch.tensor(level, device=relative.device)
+        level_parents = [parent_list[j] for j in level]
+        if level_parents[0] == -1:  # depth 0: children of the root frame
+            if root is not None:
+                global_rot[..., index, :, :] = root.unsqueeze(-3) @ relative[..., index, :, :]
+            continue
+        parent_index = torch.tensor(level_parents, device=relative.device)
+        global_rot[..., index, :, :] = (
+            global_rot[..., parent_index, :, :] @ relative[..., index, :, :]
+        )
+    return global_rot

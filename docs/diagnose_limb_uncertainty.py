@@ -44,12 +44,12 @@ from hkpd.evaluation.occlusion_response import (
     sampled_vertex_uncertainty,
 )
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
+from hkpd.network.checkpoint import load_network
 from hkpd.network.output import NetworkOutput
 from hkpd.poses import pose_source
 from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.augmentations import AugmentationConfig
 from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator, batch_seed
-from hkpd.training.checkpoint import load_network
 
 CENTIMETRES_PER_METRE = 100.0
 CONCENTRATION_FACTORS = (1.0, 0.5, 0.25, 0.1)

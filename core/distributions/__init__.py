@@ -8,16 +8,14 @@
 
 from hkpd.distributions.bingham_sampler import kent_optimal_b, sample_bingham
 from hkpd.distributions.body_shape import body_shape_distribution
-from hkpd.distributions.kinematic_matrix_fisher import (
-    KinematicMatrixFisher,
-    compose_global_rotations,
-)
+from hkpd.distributions.kinematic_matrix_fisher import KinematicMatrixFisher
 from hkpd.distributions.matrix_fisher import MatrixFisher
 from hkpd.distributions.normalizer import (
     log_normalizer_and_expectation,
     matrix_fisher_log_normalizer,
 )
 from hkpd.distributions.proper_svd import proper_svd
+from hkpd.kinematic_tree import compose_global_rotations  # re-exported: it used to live here
 
 __all__ = [
     "KinematicMatrixFisher",

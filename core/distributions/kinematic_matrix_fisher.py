@@ -16,49 +16,7 @@ from torch.distributions import Distribution, constraints
 from torch.distributions.utils import lazy_property
 
 from hkpd.distributions.matrix_fisher import MatrixFisher, rotation_matrices
-from hkpd.kinematic_tree import depth_levels, validate_parents
-
-
-def compose_global_rotations(
-    relative: torch.Tensor, parents: Sequence[int], root: torch.Tensor | None = None
-) -> torch.Tensor:
-    """Forward kinematics of rotations: relative joint rotations to global ones.
-
-    ``global_j = global_{parent(j)} @ relative_j``, with the root frame's rotation ``root`` for
-    joints whose parent is -1. Joints at the same tree depth are composed in one batched
-    product, so the loop runs over depth levels (9 for SMPL), not joints.
-
-    Args:
-        relative: ``(..., J, 3, 3)`` rotations of each joint relative to its parent.
-        parents: length-J parents (-1 = attached to the root frame), parents before children.
-        root: optional ``(..., 3, 3)`` root (global) rotation, broadcastable; identity if None.
-
-    Returns:
-        ``(..., J, 3, 3)`` global rotations.
-    """
-    parent_list = validate_parents(parents)
-    if relative.shape[-3:] != (len(parent_list), 3, 3):
-        raise ValueError(
-            f"relative rotations must have shape (..., {len(parent_list)}, 3, 3), "
-            f"got {tuple(relative.shape)}"
-        )
-    if root is not None:
-        batch = torch.broadcast_shapes(relative.shape[:-3], root.shape[:-2])
-        relative = relative.expand(*batch, *relative.shape[-3:])
-        root = root.expand(*batch, 3, 3)
-    global_rot = relative.clone()
-    for level in depth_levels(parent_list):
-        index = torch.tensor(level, device=relative.device)
-        level_parents = [parent_list[j] for j in level]
-        if level_parents[0] == -1:  # depth 0: children of the root frame
-            if root is not None:
-                global_rot[..., index, :, :] = root.unsqueeze(-3) @ relative[..., index, :, :]
-            continue
-        parent_index = torch.tensor(level_parents, device=relative.device)
-        global_rot[..., index, :, :] = (
-            global_rot[..., parent_index, :, :] @ relative[..., index, :, :]
-        )
-    return global_rot
+from hkpd.kinematic_tree import compose_global_rotations, validate_parents
 
 
 class KinematicMatrixFisher(Distribution):

@@ -114,9 +114,9 @@ def _network_and_test_generator(
     """The checkpoint's network and a generator of test-split examples at its input size
     (upright people unless ``orientation`` says otherwise)."""
     from hkpd.body import BodyModel
+    from hkpd.network.checkpoint import load_network
     from hkpd.poses import pose_source
     from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
-    from hkpd.training.checkpoint import load_network
 
     network, _ = load_network(checkpoint, device)
     config = SyntheticDataConfig(image_size=int(network.config.image_size))

@@ -388,7 +388,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: error: no images found in {' '.join(args.inputs)}", file=sys.stderr)
         return 2
 
-    from hkpd.training.checkpoint import CheckpointError
+    from hkpd.network.checkpoint import CheckpointError
 
     try:
         predictor = load_predictor(args.model, args.device)

@@ -27,6 +27,7 @@ from PIL import Image
 from hkpd.body import BodyModel
 from hkpd.conditioning import BodyEstimate, EvidenceConfig, KeypointEvidence, condition_on_keypoints
 from hkpd.devices import resolve_device
+from hkpd.network.checkpoint import load_network
 from hkpd.network.output import NetworkOutput
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
@@ -34,7 +35,6 @@ from hkpd.prediction.network_input import NetworkInput, prepare_network_input
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.upright_view import UprightView, torso_tilt
 from hkpd.proxy import build_proxy
-from hkpd.training.checkpoint import load_network
 
 SHIPPED_MODEL = ("models", "hkpd_hierarchical.pt")
 """The pretrained weights inside the ``hkpd.assets`` package."""

@@ -1,209 +1,32 @@
-"""Checkpoints: save, resume and load trained networks.
+"""Checkpoints as the training loop uses them; the format lives beside the network.
 
-A checkpoint is one ``torch.save`` file holding plain data only (loadable with
-``weights_only=True``):
-
-| key | content |
-|---|---|
-| ``format`` | ``"hkpd-checkpoint"`` |
-| ``version`` | format version (1) |
-| ``network_config`` | dict, rebuilds the network with ``DistributionNetwork.from_config`` |
-| ``model`` | the network's ``state_dict`` (float32, or float16 in exported weights) |
-| ``optimizer`` | the optimiser's ``state_dict`` (absent in exported weights) |
-| ``step`` | optimiser steps done |
-| ``train_config`` | the :class:`~hkpd.training.config.TrainConfig` as a dict |
-| ``samples_seen`` | training examples seen |
-| ``rng`` | random states (torch CPU and CUDA, numpy, python) at the save, so a resumed run
-  continues bit-exactly (absent in exported weights) |
-| ``checksum`` | SHA-256 of the model tensors' bytes (format 2): a damaged file is refused |
-
-Format 1 files (no checksum) still load.
+Reading and writing weights is :mod:`hkpd.network.checkpoint` (so prediction and evaluation
+load weights without importing the training stack); this module keeps the training-side names
+where they always were.
 """
 
-from __future__ import annotations
+from hkpd.network.checkpoint import (
+    FORMAT,
+    VERSION,
+    CheckpointError,
+    load_initial_weights,
+    load_network,
+    model_checksum,
+    random_states,
+    read_checkpoint,
+    restore_random_states,
+    save_checkpoint,
+)
 
-import hashlib
-import random
-from pathlib import Path
-from typing import Any
-
-import numpy as np
-import torch
-
-FORMAT = "hkpd-checkpoint"
-VERSION = 2
-
-
-class CheckpointError(ValueError):
-    """A file is not a readable hkpd checkpoint; the message says why and what to do."""
-
-
-def save_checkpoint(
-    path: Path,
-    model: torch.nn.Module,
-    network_config: dict,
-    step: int,
-    train_config: dict,
-    samples_seen: int,
-    optimizer: torch.optim.Optimizer | None = None,
-    half_precision: bool = False,
-) -> Path:
-    """Write a checkpoint atomically (to a temporary name, then renamed).
-
-    Args:
-        half_precision: store float tensors as float16 and no optimiser state (for shipping
-            small weights; not for resuming).
-    """
-    state = model.state_dict()
-    if half_precision:
-        state = {
-            key: value.half() if value.is_floating_point() else value
-            for key, value in state.items()
-        }
-    payload: dict[str, Any] = {
-        "format": FORMAT,
-        "version": VERSION,
-        "network_config": network_config,
-        "model": {key: value.detach().cpu() for key, value in state.items()},
-        "step": int(step),
-        "train_config": train_config,
-        "samples_seen": int(samples_seen),
-    }
-    if optimizer is not None and not half_precision:
-        payload["optimizer"] = optimizer.state_dict()
-        payload["rng"] = random_states()
-    payload["checksum"] = model_checksum(payload["model"])
-    partial = path.with_name(path.name + ".partial")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        torch.save(payload, partial)
-        partial.replace(path)
-    except OSError as error:
-        partial.unlink(missing_ok=True)  # never leave a half-written file filling the disk
-        raise OSError(
-            f"cannot write the checkpoint {path} ({error.strerror or error}); free some space "
-            "or choose a writable --out"
-        ) from error
-    return path
-
-
-def model_checksum(state: dict[str, torch.Tensor]) -> str:
-    """SHA-256 over the names and raw bytes of a state dict's tensors (sorted by name)."""
-    digest = hashlib.sha256()
-    for key in sorted(state):
-        tensor = state[key].detach().cpu().contiguous()
-        digest.update(key.encode())
-        digest.update(str(tensor.dtype).encode())
-        digest.update(tensor.reshape(-1).view(torch.uint8).numpy().tobytes())
-    return digest.hexdigest()
-
-
-def random_states() -> dict[str, Any]:
-    """Every global random state a training step draws from, as plain data."""
-    numpy_state = np.random.get_state()  # noqa: NPY002 (saving the legacy global state)
-    states: dict[str, Any] = {
-        "torch": torch.get_rng_state(),
-        "numpy": {
-            "keys": torch.from_numpy(numpy_state[1].astype(np.int64)),
-            "position": int(numpy_state[2]),
-            "has_gauss": int(numpy_state[3]),
-            "cached_gaussian": float(numpy_state[4]),
-        },
-        "python": random.getstate(),
-    }
-    if torch.cuda.is_available():
-        states["cuda"] = torch.cuda.get_rng_state_all()
-    return states
-
-
-def restore_random_states(states: dict[str, Any]) -> None:
-    """Inverse of :func:`random_states`."""
-    torch.set_rng_state(states["torch"].cpu())
-    numpy_state = states["numpy"]
-    np.random.set_state((  # noqa: NPY002 (restoring the legacy global state)
-        "MT19937", numpy_state["keys"].numpy().astype(np.uint32), numpy_state["position"],
-        numpy_state["has_gauss"], numpy_state["cached_gaussian"],
-    ))  # fmt: skip
-    python = states["python"]
-    random.setstate((python[0], tuple(python[1]), python[2]))
-    if "cuda" in states and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(states["cuda"])
-
-
-def read_checkpoint(path: Path | str, map_location: str | torch.device = "cpu") -> dict:
-    """Load and validate a checkpoint file.
-
-    Raises:
-        FileNotFoundError: no such file.
-        CheckpointError: not an hkpd checkpoint, or written by a newer format version.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"checkpoint {path} does not exist")
-    try:
-        payload = torch.load(path, map_location=map_location, weights_only=True)
-    except Exception as error:  # torch raises many types for corrupt files
-        raise CheckpointError(f"{path} is not a readable checkpoint ({error})") from error
-    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-        raise CheckpointError(f"{path} is not an hkpd checkpoint (no '{FORMAT}' marker)")
-    if int(payload.get("version", 0)) > VERSION:
-        raise CheckpointError(
-            f"{path} has checkpoint format {payload['version']}; this hkpd reads up to "
-            f"{VERSION}. Upgrade hkpd."
-        )
-    if not isinstance(payload.get("model"), dict) or "network_config" not in payload:
-        raise CheckpointError(f"{path} is an hkpd checkpoint without weights or architecture")
-    expected = payload.get("checksum")
-    if expected is not None and model_checksum(payload["model"]) != expected:
-        raise CheckpointError(
-            f"{path} is damaged: its weights do not match the checksum stored with them; "
-            "use another copy (or the previous checkpoint)"
-        )
-    return payload
-
-
-def load_network(path: Path | str, device: str | torch.device = "cpu") -> tuple[Any, dict]:
-    """Rebuild the trained network from a checkpoint, in float32 and eval mode.
-
-    Returns:
-        ``(network, checkpoint dict)``.
-    """
-    from hkpd.network import DistributionNetwork
-
-    payload = read_checkpoint(path)
-    network = DistributionNetwork.from_config(payload["network_config"])
-    state = {
-        key: value.float() if value.is_floating_point() else value
-        for key, value in payload["model"].items()
-    }
-    network.load_state_dict(state)
-    return network.to(device).eval(), payload
-
-
-def load_initial_weights(network: Any, path: Path | str, device: str | torch.device) -> None:
-    """Copy a trained network's weights into ``network`` (``hkpd-train --init-weights``).
-
-    The architectures must match, except that ``network`` may add the concentration gain the
-    trained one lacks: its gain layers then keep their zero initialisation, so the network
-    starts out predicting exactly what the trained one did.
-
-    Raises:
-        ValueError: if the architectures differ otherwise.
-    """
-    from hkpd.network.config import NetworkConfig
-
-    initial, payload = load_network(path, device)
-    wanted = network.config.to_dict()
-    found = NetworkConfig.from_dict(payload["network_config"]).to_dict()
-    adds_gain = wanted["concentration_gain"] and not found["concentration_gain"]
-    if adds_gain:
-        found["concentration_gain"] = True
-    if found != wanted:
-        raise ValueError(
-            f"--init-weights {path} has architecture {payload['network_config']}, but this run "
-            f"builds {wanted}: match --image-size, --backbone-base-width and --pose-head"
-        )
-    missing, unexpected = network.load_state_dict(initial.state_dict(), strict=False)
-    not_gain = [key for key in missing if "log_gain" not in key]
-    if unexpected or not_gain:
-        raise ValueError(f"--init-weights {path}: missing {missing}, unexpected {unexpected}")
+__all__ = [
+    "FORMAT",
+    "VERSION",
+    "CheckpointError",
+    "load_initial_weights",
+    "load_network",
+    "model_checksum",
+    "random_states",
+    "read_checkpoint",
+    "restore_random_states",
+    "save_checkpoint",
+]
