@@ -140,8 +140,10 @@ def test_failures_are_one_line_each_and_exit_code_is_one(run_result, photos):
     assert failed_names == ["blank.jpg", "corrupt.jpg", "missing.jpg", "notes.txt"]
     assert any("no person" in line for line in failed if "blank.jpg" in line)
     assert "notes.md" not in stderr + run_result["stdout"]
-    assert "1 of 5 photos done, 4 failed" in run_result["stdout"]
-    assert "--bbox" in run_result["stdout"]  # says how to pick another person
+    assert "1 of 5 photos done, 4 failed; wrote" in run_result["stdout"]
+    # The one detector we have sees one person: no "several people?" hint after every photo.
+    assert "several people" not in run_result["stdout"]
+    assert not [p for p in run_result["out"].iterdir() if p.name.endswith(".partial")]
 
 
 def test_files_written(run_result):
@@ -413,3 +415,27 @@ def test_fit_overlay_draws_the_mode_where_its_keypoints_reproject(
     pixels = np.floor((torso - [x0, y0]) / (x1 - x0) * 200).astype(int)
     assert all(alpha[v, u] > 0 for u, v in pixels)  # shoulders and hips fall on the body
     assert (overlay.with_opacity(0.5)[..., 3].max()) == 128
+
+
+def test_existing_results_are_refused_unless_overwrite_replaces_them(
+    photos, tmp_path, checkpoint, fake_predictor_factory, monkeypatch, capsys
+):
+    monkeypatch.setattr(cli, "load_predictor", fake_predictor_factory)
+    flags = [str(photos["person"]), "--out", str(tmp_path), "--model", str(checkpoint),
+             "--samples", "2", "--format", "ply", "--uncertainty-samples", "2"]  # fmt: skip
+    assert cli.main(flags) == 0
+    folder = tmp_path / "person"
+    stale = folder / "samples" / "sample_009.ply"
+    stale.write_text("an old file")
+    capsys.readouterr()
+    assert cli.main(flags) == 2  # nothing the user has is overwritten silently
+    assert "--overwrite" in capsys.readouterr().err and stale.exists()
+    assert cli.main([*flags, "--overwrite"]) == 0
+    assert not stale.exists()  # the old results went, the new ones are all that is there
+    summary = json.loads((folder / "summary.json").read_text())
+    on_disk = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file())
+    assert sorted(summary["files"]) == on_disk
+    assert cli.main([str(photos["blank"]), "--out", str(tmp_path / "b"), "--model",
+                     str(checkpoint)]) == 1  # fmt: skip
+    assert "nothing written" in capsys.readouterr().out
+    assert not (tmp_path / "b" / "blank").exists()  # a failed photo leaves no folder

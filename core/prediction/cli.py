@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 import time
 from collections.abc import Sequence
@@ -73,6 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("inputs", nargs="+", metavar="IMAGE_OR_DIR", help="photos or folders")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a photo's existing results in --out (they are removed first); without "
+        "it, an existing non-empty result folder is an error",
+    )
     parser.add_argument("--model", default=None, help="checkpoint (default: the shipped model)")
     parser.add_argument(
         "--samples", type=int, default=10, help="sample meshes to write per photo (default 10)"
@@ -387,6 +394,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not images:
         print(f"{PROG}: error: no images found in {' '.join(args.inputs)}", file=sys.stderr)
         return 2
+    taken = _existing_results([args.out / name for name in output_names(images)])
+    if taken and not args.overwrite:
+        shown = ", ".join(str(folder) for folder in taken[:3]) + (" ..." if len(taken) > 3 else "")
+        print(f"{PROG}: error: {len(taken)} result folder(s) already exist ({shown}); pass "
+              "--overwrite to replace them, or choose another --out", file=sys.stderr)  # fmt: skip
+        return 2
 
     from hkpd.network.checkpoint import CheckpointError
 
@@ -414,10 +427,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         for image, name in progress:
             try:
-                result = predict_photo(
+                result = _predict_into(
+                    args.out / name,
                     predictor,
                     image,
-                    args.out / name,
                     samples=args.samples,
                     formats=formats,
                     bbox=bbox,
@@ -440,7 +453,6 @@ def main(argv: Sequence[str] | None = None) -> int:
                 box = ", ".join(f"{value:.0f}" for value in result.person_box or ())
                 tqdm.write(
                     f"{image}: person at bbox ({box}) -> {result.folder} ({result.seconds:.1f} s)"
-                    " [several people? pick one with --bbox x0 y0 x1 y1]"
                     + (f" [{result.note}]" if result.note else ""),
                     file=sys.stdout,
                 )
@@ -455,9 +467,34 @@ def main(argv: Sequence[str] | None = None) -> int:
             closer()
     failed = [result for result in results if result.error is not None]
     done = len(results) - len(failed)
-    print(f"{PROG}: {done} of {len(results)} photos done, {len(failed)} failed; output in "
-          f"{args.out}")  # fmt: skip
+    files = sum(len(result.files) for result in results if result.error is None)
+    written = (
+        f"wrote {files} files in {done} folder(s) under {args.out}" if done else "nothing written"
+    )
+    print(f"{PROG}: {done} of {len(results)} photos done, {len(failed)} failed; {written}")
     return 1 if failed else 0
+
+
+def _existing_results(folders: Sequence[Path]) -> list[Path]:
+    """The folders that already hold something (a previous run's results)."""
+    return [folder for folder in folders if folder.exists() and any(folder.iterdir())]
+
+
+def _predict_into(folder: Path, *args: Any, **kwargs: Any) -> PhotoResult:
+    """:func:`predict_photo` into a temporary folder beside ``folder``, renamed to it once
+    everything is written, so a photo's results never mix with older ones and a failure leaves
+    nothing half-written (an existing ``folder`` is only replaced on success)."""
+    partial = folder.with_name(f".{folder.name}.partial")
+    shutil.rmtree(partial, ignore_errors=True)
+    try:
+        result = predict_photo(*args, folder=partial, **kwargs)
+        if folder.exists():
+            shutil.rmtree(folder)
+        partial.rename(folder)
+    finally:
+        shutil.rmtree(partial, ignore_errors=True)
+    result.folder = folder
+    return result
 
 
 if __name__ == "__main__":
