@@ -14,7 +14,8 @@ from hkpd.training.checkpoint import CheckpointError, load_network, read_checkpo
 from hkpd.training.cli import build_parser
 from hkpd.training.cli import main as train_main
 from hkpd.training.config import TrainConfig, learning_rate_at
-from hkpd.training.loop import _append_csv, build_schedule, train
+from hkpd.training.csv_logs import append_row
+from hkpd.training.loop import build_schedule, train
 from hkpd.training.schedule import LossWeights
 
 TINY = {
@@ -131,9 +132,9 @@ def test_worker_processes_feed_the_same_training(tmp_path) -> None:
 
 def test_csv_log_gains_columns_a_newer_version_adds(tmp_path) -> None:
     log = tmp_path / "val.csv"
-    _append_csv(log, {"step": 1, "mpjpe": 70.0})
-    _append_csv(log, {"step": 2, "mpjpe": 69.0, "pose_coverage_50": 0.4})
-    _append_csv(log, {"step": 3, "mpjpe": 68.0, "pose_coverage_50": 0.45})
+    append_row(log, {"step": 1, "mpjpe": 70.0})
+    append_row(log, {"step": 2, "mpjpe": 69.0, "pose_coverage_50": 0.4})
+    append_row(log, {"step": 3, "mpjpe": 68.0, "pose_coverage_50": 0.45})
     with log.open() as handle:
         rows = list(csv.DictReader(handle))
     assert [row["step"] for row in rows] == ["1", "2", "3"]

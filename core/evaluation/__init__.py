@@ -5,7 +5,7 @@ Metric functions return per-example values: metres for 3D metrics (times
 :data:`MILLIMETRES_PER_METRE` for the paper's tables), pixels for 2D errors.
 """
 
-from hkpd.evaluation.alignment import (
+from hkpd.alignment import (
     least_squares_scale_align,
     procrustes_align,
     rms_scale_align,

@@ -18,6 +18,8 @@ import numpy as np
 
 from hkpd.coco_keypoints import COCO17_LEFT_RIGHT_PAIRS, COCO17_NAMES
 from hkpd.evaluation.real_photos import AnnotatedPerson
+from hkpd.prediction.image_input import ImageInputError
+from hkpd.prediction.keypoint_detector import NoPersonFoundError
 
 CONFIDENCE = 0.6
 OUTLIER_FRACTION = 0.2
@@ -56,8 +58,6 @@ def _other_side() -> dict[int, int]:
 
 def detector_errors(detector, people: Sequence[AnnotatedPerson]) -> DetectorErrors:
     """Run ``detector`` (a :class:`hkpd.prediction.KeypointDetector`) on ``people``."""
-    from hkpd.prediction import ImageInputError, NoPersonFoundError
-
     other = _other_side()
     residuals: list[np.ndarray] = []
     per_keypoint: dict[int, list[float]] = {k: [] for k in range(17)}

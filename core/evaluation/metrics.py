@@ -12,7 +12,7 @@ Definitions:
   each set's root joint (the pelvis), no scaling or rotation.
 - **MPJPE-SC** (scale-corrected, STRAPS): the prediction is centred on its centroid, scaled to
   the target's RMS distance from its centroid and moved onto the target's centroid; then mean
-  per-joint distance (see :func:`hkpd.evaluation.alignment.rms_scale_align`). This removes the
+  per-joint distance (see :func:`hkpd.alignment.rms_scale_align`). This removes the
   scale/depth ambiguity of a monocular prediction. ``method="least_squares"`` instead uses the
   least-squares scale after root alignment.
 - **MPJPE-PA** (Procrustes-aligned): the prediction is mapped by the optimal similarity
@@ -34,13 +34,13 @@ from collections.abc import Sequence
 
 import torch
 
-from hkpd.body.body_model import BodyModel
-from hkpd.evaluation.alignment import (
+from hkpd.alignment import (
     least_squares_scale_align,
     procrustes_align,
     rms_scale_align,
     root_align,
 )
+from hkpd.body.body_model import BodyModel
 
 MILLIMETRES_PER_METRE = 1000.0
 """Multiply the 3D metrics (metres) by this for the paper's millimetres."""

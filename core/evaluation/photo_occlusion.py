@@ -14,6 +14,8 @@ from tqdm import tqdm
 
 from hkpd.evaluation.occlusion_response import OCCLUDED_LIMBS, limb_vertex_masks
 from hkpd.evaluation.real_photos import AnnotatedPerson
+from hkpd.prediction.image_input import ImageInputError
+from hkpd.prediction.keypoint_detector import NoPersonFoundError
 
 LIMB_KEYPOINTS = {
     "left_forearm": (7, 9),
@@ -57,8 +59,6 @@ def photo_occlusion_response(
         ``occlusion_ratio_median``, its quartiles, ``other_limbs_change_median`` and
         ``cases``.
     """
-    from hkpd.prediction import ImageInputError, NoPersonFoundError
-
     masks = limb_vertex_masks(predictor.body)
     ratios: list[float] = []
     others: list[float] = []

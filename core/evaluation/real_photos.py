@@ -22,6 +22,8 @@ import torch
 from tqdm import tqdm
 
 from hkpd.camera_conventions import CROP_SIZE
+from hkpd.prediction.image_input import ImageInputError
+from hkpd.prediction.keypoint_detector import NoPersonFoundError
 from hkpd.proxy import CONFIDENCE_THRESHOLD
 
 MIN_VISIBLE_KEYPOINTS = 12
@@ -108,8 +110,6 @@ def evaluate_photos(
         ``joint_error_2d_detector`` (px at a 256 crop, the detector's kept keypoints), ``people``
         evaluated and ``failed`` (no detection).
     """
-    from hkpd.prediction import ImageInputError, NoPersonFoundError
-
     sums = {"mode": [], "samples": [], "mode_box": [], "samples_box": [], "detector": []}
     failed = 0
     for person in tqdm(people, disable=not show_progress, unit="person"):

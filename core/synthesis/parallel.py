@@ -22,6 +22,7 @@ import torch
 import torch.multiprocessing as multiprocessing
 
 from hkpd.cpu_allocator import keep_freed_memory
+from hkpd.poses import pose_source
 from hkpd.poses.mixed_source import PoseMix
 from hkpd.synthesis.batch import PackedBatch, TrainingBatch
 from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator, batch_seed
@@ -46,8 +47,6 @@ class GeneratorSpec:
     pose_mix: PoseMix | None = None
 
     def build(self, device: str = "cpu") -> SyntheticDataGenerator:
-        from hkpd.poses import pose_source
-
         source = pose_source(self.poses, self.split, self.pose_mix)
         return SyntheticDataGenerator(source, self.config, device, self.backgrounds)
 

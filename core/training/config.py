@@ -17,6 +17,7 @@ import typing
 from dataclasses import dataclass
 from pathlib import Path
 
+from hkpd.network.config import NetworkConfig
 from hkpd.poses.mixed_source import PoseMix
 from hkpd.synthesis.augmentations import AugmentationConfig
 from hkpd.synthesis.generator import SyntheticDataConfig
@@ -168,6 +169,15 @@ class TrainConfig:
                 f"--device must be auto, cpu, cuda, cuda:N or mps, got {self.device!r}"
             )
         return self
+
+    def network_config(self) -> NetworkConfig:
+        """The architecture this run trains."""
+        return NetworkConfig(
+            backbone_base_width=self.backbone_base_width,
+            pose_head=self.pose_head,
+            image_size=self.image_size,
+            concentration_gain=self.concentration_gain,
+        )
 
     def data_config(self) -> SyntheticDataConfig:
         """The synthetic data this run trains on (augmentations, orientations)."""

@@ -10,7 +10,6 @@ the data stream is indexed by step, so a resumed run sees the batches it would h
 
 from __future__ import annotations
 
-import csv
 import math
 import signal
 import threading
@@ -23,11 +22,13 @@ from tqdm import tqdm
 
 from hkpd.body import BodyModel
 from hkpd.devices import resolve_device
+from hkpd.evaluation.synthetic import evaluate_batches
 from hkpd.network import DistributionNetwork
 from hkpd.network.config import NetworkConfig
-from hkpd.poses import pose_source
+from hkpd.poses import PoseSource, pose_source
 from hkpd.synthesis.generator import (
     SyntheticBatches,
+    SyntheticDataConfig,
     SyntheticDataGenerator,
     fixed_test_set,
 )
@@ -39,12 +40,14 @@ from hkpd.training.checkpoint import (
     save_checkpoint,
 )
 from hkpd.training.config import TrainConfig, learning_rate_at
+from hkpd.training.csv_logs import append_row, check_log, complete_row, truncate_log
 from hkpd.training.curves import plot_training_curves
 from hkpd.training.losses import compute_losses
 from hkpd.training.prefetch import Prefetcher
-from hkpd.training.schedule import LOSS_TERMS, LossSchedule, LossStage, LossWeights
+from hkpd.training.schedule import LossSchedule, LossStage, LossWeights
 
 CHECKPOINT_NAME = "last.pt"
+LOGS = ("train.csv", "val.csv")
 VALIDATION_SEED = 7
 
 
@@ -116,30 +119,6 @@ def _tensorboard_writer(out: Path):
     return SummaryWriter(str(out / "tensorboard"))
 
 
-def _append_csv(path: Path, row: dict[str, float]) -> None:
-    """Append ``row``; a row with columns the file lacks (a run resumed by a newer version that
-    logs more metrics) rewrites the file with the extra columns, left empty in older rows."""
-    columns = list(row)
-    if path.exists():
-        with path.open(newline="") as handle:
-            header = next(csv.reader(handle), [])
-        if header and not set(columns) <= set(header):
-            with path.open(newline="") as handle:
-                rows = list(csv.DictReader(handle))
-            header += [column for column in columns if column not in header]
-            with path.open("w", newline="") as handle:
-                writer = csv.DictWriter(handle, fieldnames=header)
-                writer.writeheader()
-                writer.writerows(rows)
-        columns = header or columns
-    new = not path.exists() or path.stat().st_size == 0
-    with path.open("a", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=columns)
-        if new:
-            writer.writeheader()
-        writer.writerow(row)
-
-
 def _check_resumable(
     payload: dict, network_config: NetworkConfig, config: TrainConfig, path: Path
 ) -> None:
@@ -167,44 +146,37 @@ def _check_resumable(
         )
 
 
-def _check_csv(path: Path) -> None:
-    """Raise a ValueError when a log to resume has rows but no ``step`` column."""
-    if not path.exists():
-        return
-    with path.open(newline="") as handle:
-        header = next(csv.reader(handle), [])
-        has_rows = next(csv.reader(handle), None) is not None
-    if has_rows and "step" not in header:
-        raise ValueError(
-            f"--resume: {path} has no 'step' column, so it was not written by hkpd-train; "
-            "move it away to continue"
-        )
+@dataclass
+class TrainingSetup:
+    """Everything a run needs, built (and resumed) by :func:`build_training`."""
+
+    config: TrainConfig
+    device: torch.device
+    out: Path
+    body: BodyModel
+    network_config: NetworkConfig
+    network: DistributionNetwork
+    optimizer: torch.optim.Optimizer
+    schedule: LossSchedule
+    data_config: SyntheticDataConfig
+    val_poses: PoseSource
+    step: int = 0
+    samples_seen: int = 0
+
+    @property
+    def checkpoint_path(self) -> Path:
+        return self.out / CHECKPOINT_NAME
 
 
-def _truncate_csv(path: Path, last_step: int) -> None:
-    """Drop rows after ``last_step`` (a resumed run rewrites them)."""
-    if not path.exists():
-        return
-    with path.open() as handle:
-        rows = list(csv.DictReader(handle))
-    if not rows:
-        return
-    kept = [row for row in rows if float(row["step"]) <= last_step]
-    with path.open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(kept)
+def build_training(config: TrainConfig, resume: bool = False) -> TrainingSetup:
+    """Check the config and the paths, build data, network and optimiser, and resume.
 
-
-def train(config: TrainConfig, resume: bool = False, show_progress: bool = True) -> TrainingResult:
-    """Run (or resume) a training run as configured; see the module docstring.
+    A refused resume (another architecture, a finished run, a foreign log) writes nothing.
 
     Raises:
         FileNotFoundError: a data path (pose bank, backgrounds, resume checkpoint) is missing.
-        ValueError: a learning rate is not positive.
+        ValueError: a flag out of range, or a resume that cannot continue.
     """
-    from hkpd.evaluation.synthetic import evaluate_batches
-
     config.validate()
     _check_paths(config)
     device = resolve_device(config.device)
@@ -212,177 +184,222 @@ def train(config: TrainConfig, resume: bool = False, show_progress: bool = True)
     checkpoint_path = out / CHECKPOINT_NAME
     if resume and not checkpoint_path.is_file():
         raise FileNotFoundError(f"--resume: no checkpoint at {checkpoint_path}")
-    train_poses = pose_source(config.poses, "train", config.pose_mix())
     val_poses = pose_source(config.poses, "val", config.pose_mix())
-    network_config = NetworkConfig(
-        backbone_base_width=config.backbone_base_width,
-        pose_head=config.pose_head,
-        image_size=config.image_size,
-        concentration_gain=config.concentration_gain,
-    )
+    pose_source(config.poses, "train", config.pose_mix())  # fails early on a bad bank
+    network_config = config.network_config()
     payload = None
-    if resume:  # checked before anything in the run folder is written
+    if resume:
         payload = read_checkpoint(checkpoint_path, map_location=device)
         _check_resumable(payload, network_config, config, checkpoint_path)
-        for log in ("train.csv", "val.csv"):
-            _check_csv(out / log)
+        for log in LOGS:
+            check_log(out / log)
     out.mkdir(parents=True, exist_ok=True)
     config.save(out / "config.json")
-
     torch.manual_seed(config.seed)
-    body = BodyModel().to(device)
-    data_config = config.data_config()
-    generator = SyntheticDataGenerator(
-        train_poses, data_config, device=device, background_dir=config.backgrounds, body=body
-    )
     network = DistributionNetwork(network_config).to(device)
     if config.init_weights is not None and not resume:
         load_initial_weights(network, config.init_weights, device)
-    optimizer = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
-    step, samples_seen = 0, 0
+    setup = TrainingSetup(
+        config, device, out, BodyModel().to(device), network_config, network,
+        torch.optim.Adam(network.parameters(), lr=config.learning_rate), build_schedule(config),
+        config.data_config(), val_poses,
+    )  # fmt: skip
     if payload is not None:
-        network.load_state_dict(payload["model"])
-        optimizer.load_state_dict(payload["optimizer"])
-        step, samples_seen = int(payload["step"]), int(payload["samples_seen"])
-        for log in ("train.csv", "val.csv"):
-            _truncate_csv(out / log, step)
-        if "rng" in payload:  # checkpoints before format 2 did not keep them
-            restore_random_states(payload["rng"])
-    schedule = build_schedule(config)
-    board = _tensorboard_writer(out) if config.tensorboard else None
-    use_amp = config.amp and device.type == "cuda"
+        _resume(setup, payload)
+    return setup
 
-    def save() -> Path:
-        return save_checkpoint(
-            checkpoint_path,
-            network,
-            network_config.to_dict(),
-            step,
-            config.to_dict(),
-            samples_seen,
-            optimizer,
+
+def _resume(setup: TrainingSetup, payload: dict) -> None:
+    """Weights, optimiser, counters and random states from a checkpoint; logs cut after it."""
+    setup.network.load_state_dict(payload["model"])
+    setup.optimizer.load_state_dict(payload["optimizer"])
+    setup.step, setup.samples_seen = int(payload["step"]), int(payload["samples_seen"])
+    for log in LOGS:
+        truncate_log(setup.out / log, setup.step)
+    if "rng" in payload:  # checkpoints before format 2 did not keep them
+        restore_random_states(payload["rng"])
+
+
+def _batch_stream(setup: TrainingSetup):
+    """Training batches from ``setup.step`` on: worker processes, or a background thread."""
+    config = setup.config
+    if config.data_workers > 0 and setup.device.type == "cpu":
+        spec = GeneratorSpec(
+            config.poses, "train", setup.data_config, config.backgrounds, config.pose_mix()
         )
+        return ParallelBatches(
+            spec, config.batch_size, config.seed, start=setup.step, workers=config.data_workers
+        )
+    poses = pose_source(config.poses, "train", config.pose_mix())
+    generator = SyntheticDataGenerator(
+        poses, setup.data_config, setup.device, config.backgrounds, body=setup.body
+    )
+    return Prefetcher(SyntheticBatches(generator, config.batch_size, config.seed, setup.step))
 
-    validation_set = None
-    last_validation: dict[str, float] = {}
 
-    def validate() -> dict[str, float]:
-        nonlocal validation_set
-        if validation_set is None:
+class TrainingRun:
+    """One run's loop: :meth:`step`, :meth:`log`, :meth:`validate`, :meth:`save`, :meth:`run`.
+
+    Args:
+        setup: from :func:`build_training`.
+        show_progress: draw a progress bar.
+    """
+
+    def __init__(self, setup: TrainingSetup, show_progress: bool = True) -> None:
+        self.setup = setup
+        self.config = setup.config
+        self.board = _tensorboard_writer(setup.out) if self.config.tensorboard else None
+        self.use_amp = self.config.amp and setup.device.type == "cuda"
+        self.validation_set: list | None = None
+        self.last_validation: dict[str, float] = {}
+        self.started = time.perf_counter()
+        self.window_start, self.window_samples = self.started, 0
+        self.progress = tqdm(
+            total=self.config.steps, initial=setup.step, disable=not show_progress,
+            unit="step", dynamic_ncols=True,
+        )  # fmt: skip
+
+    def step(self, batch) -> tuple[dict[str, torch.Tensor], float]:
+        """One optimiser step on ``batch``; returns the loss terms and the learning rate."""
+        setup = self.setup
+        weights = setup.schedule.weights_at(setup.step)
+        with torch.autocast(setup.device.type, dtype=torch.bfloat16, enabled=self.use_amp):
+            output = setup.network(batch.proxy)
+        terms = compute_losses(output, batch, setup.body, weights, self.config.num_samples)
+        setup.optimizer.zero_grad(set_to_none=True)
+        terms["total"].backward()
+        torch.nn.utils.clip_grad_norm_(setup.network.parameters(), 10.0)
+        rate = learning_rate_at(setup.step, self.config)
+        for group in setup.optimizer.param_groups:
+            group["lr"] = rate
+        setup.optimizer.step()
+        setup.step += 1
+        setup.samples_seen += batch.batch_size
+        self.window_samples += batch.batch_size
+        total = float(terms["total"].detach())
+        if not math.isfinite(total):
+            self.save()
+            raise FloatingPointError(
+                f"the loss became {total} at step {setup.step}; the last checkpoint is kept at "
+                f"{setup.checkpoint_path}. Try a lower --learning-rate."
+            )
+        stage = setup.schedule.stage_at(setup.step - 1).name
+        self.progress.set_postfix(loss=f"{total:.3f}", stage=stage)
+        self.progress.update(1)
+        return terms, rate
+
+    def log(self, terms: dict[str, torch.Tensor], rate: float) -> None:
+        """One row of ``train.csv`` (and TensorBoard)."""
+        now = time.perf_counter()
+        samples_rate = self.window_samples / max(now - self.window_start, 1e-9)
+        self.window_start, self.window_samples = now, 0
+        row = {
+            "step": self.setup.step,
+            "seconds": round(now - self.started, 2),
+            "samples_per_second": round(samples_rate, 2),
+            "learning_rate": rate,
+        }
+        row |= {name: float(value.detach()) for name, value in terms.items()}
+        append_row(self.setup.out / "train.csv", complete_row(row))
+        if self.board is not None:
+            for name, value in row.items():
+                if name != "step":
+                    self.board.add_scalar(f"train/{name}", value, self.setup.step)
+
+    def validate(self) -> dict[str, float]:
+        """Metrics on the fixed validation set, appended to ``val.csv``; curves redrawn."""
+        setup = self.setup
+        if self.validation_set is None:
             val_generator = SyntheticDataGenerator(
-                val_poses, data_config, device=device, background_dir=config.backgrounds, body=body
-            )
-            validation_set = fixed_test_set(
-                val_generator, config.val_size, VALIDATION_SEED, min(config.batch_size, 50)
-            )
-        network.eval()
-        metrics = evaluate_batches(network, validation_set, body)
-        network.train()
-        _append_csv(out / "val.csv", {"step": step, **metrics})
-        if board is not None:
+                setup.val_poses, setup.data_config, setup.device, self.config.backgrounds,
+                body=setup.body,
+            )  # fmt: skip
+            self.validation_set = fixed_test_set(
+                val_generator, self.config.val_size, VALIDATION_SEED,
+                min(self.config.batch_size, 50),
+            )  # fmt: skip
+        setup.network.eval()
+        metrics = evaluate_batches(setup.network, self.validation_set, setup.body)
+        setup.network.train()
+        append_row(setup.out / "val.csv", {"step": setup.step, **metrics})
+        if self.board is not None:
             for name, value in metrics.items():
-                board.add_scalar(f"val/{name}", value, step)
-        plot_training_curves(out / "train.csv", out / "val.csv", out / "curves.png")
+                self.board.add_scalar(f"val/{name}", value, setup.step)
+        self.draw_curves()
         return metrics
 
-    if config.data_workers > 0 and device.type == "cpu":
-        spec = GeneratorSpec(
-            config.poses, "train", data_config, config.backgrounds, config.pose_mix()
-        )
-        stream = ParallelBatches(
-            spec, config.batch_size, config.seed, start=step, workers=config.data_workers
-        )
-    else:
-        stream = Prefetcher(SyntheticBatches(generator, config.batch_size, config.seed, start=step))
-    _stop_on_sigterm()
-    started = time.perf_counter()
-    window_start, window_samples = started, 0
-    interrupted = out_of_time = False
-    deadline = None if config.max_minutes is None else started + 60.0 * config.max_minutes
-    progress = tqdm(
-        total=config.steps, initial=step, disable=not show_progress, unit="step", dynamic_ncols=True
-    )
-    network.train()
-    try:
-        while step < config.steps:
-            batch = next(stream)
-            weights = schedule.weights_at(step)
-            with torch.autocast(device.type, dtype=torch.bfloat16, enabled=use_amp):
-                output = network(batch.proxy)
-            terms = compute_losses(output, batch, body, weights, config.num_samples)
-            optimizer.zero_grad(set_to_none=True)
-            terms["total"].backward()
-            torch.nn.utils.clip_grad_norm_(network.parameters(), 10.0)
-            rate = learning_rate_at(step, config)
-            for group in optimizer.param_groups:
-                group["lr"] = rate
-            optimizer.step()
-            step += 1
-            samples_seen += batch.batch_size
-            window_samples += batch.batch_size
-            total = float(terms["total"].detach())
-            if not math.isfinite(total):
-                save()
-                raise FloatingPointError(
-                    f"the loss became {total} at step {step}; the last checkpoint is kept at "
-                    f"{checkpoint_path}. Try a lower --learning-rate."
-                )
-            progress.set_postfix(loss=f"{total:.3f}", stage=schedule.stage_at(step - 1).name)
-            progress.update(1)
-            if step % config.log_every == 0 or step == config.steps:
-                now = time.perf_counter()
-                samples_rate = window_samples / max(now - window_start, 1e-9)
-                window_start, window_samples = now, 0
-                row = {
-                    "step": step,
-                    "seconds": round(now - started, 2),
-                    "samples_per_second": round(samples_rate, 2),
-                    "learning_rate": rate,
-                }
-                row |= {name: float(value.detach()) for name, value in terms.items()}
-                _append_csv(out / "train.csv", _complete_row(row))
-                if board is not None:
-                    for name, value in row.items():
-                        if name != "step":
-                            board.add_scalar(f"train/{name}", value, step)
-            if config.val_every and step % config.val_every == 0 and step < config.steps:
-                last_validation = validate()
-                progress.write(f"step {step}: " + _format_metrics(last_validation))
-            if step % config.checkpoint_every == 0:
-                save()
-            if deadline is not None and step < config.steps and time.perf_counter() >= deadline:
-                out_of_time = True
-                progress.write(
-                    f"--max-minutes {config.max_minutes:g} reached at step {step}; saving "
-                    f"{checkpoint_path} (continue with --resume)"
-                )
-                break
-    except KeyboardInterrupt:
-        interrupted = True
-        progress.write(f"interrupted at step {step}; saving {checkpoint_path}")
-    finally:
-        progress.close()
-        stream.close()
-    save()
-    if not interrupted:
-        last_validation = validate()
-        print(f"final (step {step}): " + _format_metrics(last_validation))
-    plot_training_curves(out / "train.csv", out / "val.csv", out / "curves.png")
-    if board is not None:
-        board.close()
-    return TrainingResult(
-        checkpoint_path, step, samples_seen, time.perf_counter() - started, last_validation,
-        interrupted, out_of_time,
-    )  # fmt: skip
+    def save(self) -> Path:
+        """The checkpoint (weights, optimiser, counters, random states), atomically."""
+        setup = self.setup
+        return save_checkpoint(
+            setup.checkpoint_path, setup.network, setup.network_config.to_dict(), setup.step,
+            self.config.to_dict(), setup.samples_seen, setup.optimizer,
+        )  # fmt: skip
+
+    def draw_curves(self) -> None:
+        out = self.setup.out
+        plot_training_curves(out / "train.csv", out / "val.csv", out / "curves.png")
+
+    def run(self) -> TrainingResult:
+        """Train to ``steps`` (or ``max_minutes``, or Ctrl-C / SIGTERM), then save and validate."""
+        config, setup = self.config, self.setup
+        stream = _batch_stream(setup)
+        _stop_on_sigterm()
+        interrupted = out_of_time = False
+        minutes = config.max_minutes
+        deadline = None if minutes is None else self.started + 60.0 * minutes
+        setup.network.train()
+        try:
+            while setup.step < config.steps:
+                terms, rate = self.step(next(stream))
+                out_of_time = self._after_step(terms, rate, deadline)
+                if out_of_time:
+                    break
+        except KeyboardInterrupt:
+            interrupted = True
+            self.progress.write(f"interrupted at step {setup.step}; saving {setup.checkpoint_path}")
+        finally:
+            self.progress.close()
+            stream.close()
+        self.save()
+        if not interrupted:
+            self.last_validation = self.validate()
+            print(f"final (step {setup.step}): " + _format_metrics(self.last_validation))
+        self.draw_curves()
+        if self.board is not None:
+            self.board.close()
+        return TrainingResult(
+            setup.checkpoint_path, setup.step, setup.samples_seen,
+            time.perf_counter() - self.started, self.last_validation, interrupted, out_of_time,
+        )  # fmt: skip
+
+    def _after_step(self, terms: dict, rate: float, deadline: float | None) -> bool:
+        """Log, validate and checkpoint on their schedules; True when the time is up."""
+        config, step = self.config, self.setup.step
+        if step % config.log_every == 0 or step == config.steps:
+            self.log(terms, rate)
+        if config.val_every and step % config.val_every == 0 and step < config.steps:
+            self.last_validation = self.validate()
+            self.progress.write(f"step {step}: " + _format_metrics(self.last_validation))
+        if step % config.checkpoint_every == 0:
+            self.save()
+        if deadline is not None and step < config.steps and time.perf_counter() >= deadline:
+            self.progress.write(
+                f"--max-minutes {config.max_minutes:g} reached at step {step}; saving "
+                f"{self.setup.checkpoint_path} (continue with --resume)"
+            )
+            return True
+        return False
 
 
-_LOG_TERMS = (*LOSS_TERMS, "total")
+def train(config: TrainConfig, resume: bool = False, show_progress: bool = True) -> TrainingResult:
+    """Run (or resume) a training run as configured; see the module docstring.
 
-
-def _complete_row(row: dict[str, float]) -> dict[str, float]:
-    """Every loss column in a fixed order (inactive terms empty), so CSV columns never shift."""
-    fixed = {key: row[key] for key in ("step", "seconds", "samples_per_second", "learning_rate")}
-    return fixed | {name: row.get(name, "") for name in _LOG_TERMS}
+    Raises:
+        FileNotFoundError: a data path (pose bank, backgrounds, resume checkpoint) is missing.
+        ValueError: a flag out of range, or a resume that cannot continue.
+    """
+    return TrainingRun(build_training(config, resume), show_progress).run()
 
 
 HEADLINE_METRICS = (

@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import torch
 
+from hkpd.alignment import root_align
 from hkpd.body.body_model import BodyModel
 from hkpd.body.root_relative import PELVIS, pelvis_relative_body
 from hkpd.camera_conventions import pixels_to_ndc, weak_perspective_project
 from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
-from hkpd.evaluation.alignment import root_align
 from hkpd.kinematic_tree import BODY_PARENTS
 from hkpd.network.output import NetworkOutput
 from hkpd.network.output_decoding import full_precision

@@ -1,5 +1,7 @@
 """Rigid, scale and similarity alignments of predicted point sets to targets (batched torch).
 
+Shared by the training losses and the evaluation metrics, so it sits below both.
+
 All functions take ``(B, N, 3)`` predicted and target points (joints or vertices, metres) and
 return the predicted points moved onto the target's frame; they are differentiable.
 """
