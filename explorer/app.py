@@ -212,6 +212,20 @@ class ExplorerApp:
         """Redraw after a display option changed (a sampling job: it must not replace one)."""
         self.worker.submit("sample", self._sample_job)
 
+    def set_display_options(
+        self, samples: bool, heatmap: bool, reprojection: bool, heatmap_max_cm: float
+    ) -> bool:
+        """Which parts are drawn and the colour scale's top; True if the scale changed."""
+        scene = self.scene
+        scene.show_samples, scene.show_heatmap = bool(samples), bool(heatmap)
+        scene.show_reprojection = bool(reprojection)
+        rescaled = scene.heatmap_max_cm != heatmap_max_cm
+        if rescaled:
+            scene.heatmap_max_cm = float(heatmap_max_cm)
+            scene.show_legend()
+        self.redraw()
+        return rescaled
+
     def load_upload(self, name: str, content: bytes, client: viser.ClientHandle | None) -> None:
         """Check an uploaded photo now; predict on it in the worker. Errors notify ``client``."""
         try:

@@ -6,7 +6,7 @@ Callbacks here only touch the state and ask the app for work; nothing heavy runs
 from __future__ import annotations
 
 import threading
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import torch
@@ -23,7 +23,30 @@ from hkpd.explorer.state import (
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
 
 if TYPE_CHECKING:
-    from hkpd.explorer.app import ExplorerApp
+    from hkpd.explorer.state import ExplorerState
+
+
+class PanelActions(Protocol):
+    """What the panel may ask of the app (``ExplorerApp`` implements it): change the state, then
+    say what became stale; nothing else of the app is reachable from a callback."""
+
+    state: ExplorerState
+
+    def occluders_changed(self, changed: bool) -> bool: ...
+    def sampling_changed(self, changed: bool) -> None: ...
+    def clear_occluders(self) -> None: ...
+    def set_plain_drag_draws(self, enabled: bool) -> None: ...
+    def set_evidence(self, enabled: bool) -> None: ...
+    def set_person_box(self, box: tuple[float, float, float, float] | None) -> bool: ...
+    def pick_person_next(self, enabled: bool = True) -> None: ...
+    def show_fit(self, visible: bool, opacity: float) -> None: ...
+    def set_display_options(
+        self, samples: bool, heatmap: bool, reprojection: bool, heatmap_max_cm: float
+    ) -> bool: ...
+    def load_upload(self, name: str, content: bytes, client: viser.ClientHandle | None) -> None: ...
+    def request_export(self, file_format: str, client: viser.ClientHandle) -> None: ...
+    def request_screenshot(self, client: viser.ClientHandle) -> None: ...
+
 
 EXPONENT_MARKS = ((-1.0, "0.1×"), (0.0, "1×"), (1.0, "10×"))
 
@@ -52,7 +75,7 @@ large means confident. Conditioning adds the keypoints' evidence to the network'
 class ExplorerPanels:
     """Builds the panel and keeps its dynamic parts (occluder list, teaching info) current."""
 
-    def __init__(self, server: viser.ViserServer, app: ExplorerApp) -> None:
+    def __init__(self, server: viser.ViserServer, app: PanelActions) -> None:
         self.server = server
         self.app = app
         self._lock = threading.RLock()  # the occluder list is rebuilt from several threads
@@ -243,15 +266,14 @@ class ExplorerPanels:
         self.app.sampling_changed(True)
 
     def _display_options(self) -> None:
-        scene = self.app.scene
-        scene.show_samples = self.show_samples.value
-        scene.show_heatmap = self.show_heatmap.value
-        scene.show_reprojection = self.show_reprojection.value
-        if scene.heatmap_max_cm != self.heat_max.value:
-            scene.heatmap_max_cm = float(self.heat_max.value)
-            self.legend.image = legend_image(scene.heatmap_max_cm)
-            scene.show_legend()
-        self.app.redraw()
+        rescaled = self.app.set_display_options(
+            self.show_samples.value,
+            self.show_heatmap.value,
+            self.show_reprojection.value,
+            float(self.heat_max.value),
+        )
+        if rescaled:
+            self.legend.image = legend_image(float(self.heat_max.value))
 
     # ------------------------------------------------------------------ dynamic parts
     def show_occluders(self, occluders: tuple[Occluder, ...], image_size: tuple[int, int]) -> None:

@@ -10,12 +10,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import torch
 
 from hkpd.prediction.posterior import BodyPosterior
+
+if TYPE_CHECKING:
+    from hkpd.prediction import Predictor
 
 Box = tuple[float, float, float, float]
 
@@ -65,7 +68,7 @@ class PredictorProvider:
     def __init__(self, path: str | Path | None = None, device: str = "auto") -> None:
         from hkpd.prediction import Predictor
 
-        self.predictor: Any = Predictor.from_pretrained(path, device=device)
+        self.predictor: Predictor = Predictor.from_pretrained(path, device=device)
 
     def predict(
         self,

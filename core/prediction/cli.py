@@ -32,7 +32,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -50,6 +50,10 @@ from hkpd.prediction.exports import (
 )
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
 from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
+
+if TYPE_CHECKING:
+    from hkpd.prediction.posterior import BodyPosterior
+    from hkpd.prediction.predictor import Predictor
 
 IMAGE_EXTENSIONS = IMAGE_SUFFIXES
 """Files with these extensions (any case) are taken from folders."""
@@ -190,7 +194,7 @@ def output_names(images: Sequence[Path]) -> list[str]:
     return names
 
 
-def load_predictor(model: str | None, device: str) -> Any:
+def load_predictor(model: str | None, device: str) -> Predictor:
     """The :class:`~hkpd.prediction.predictor.Predictor` (tests replace this function)."""
     from hkpd.prediction.predictor import Predictor
 
@@ -217,7 +221,7 @@ def _timed(timings: dict[str, float], name: str, start: float) -> float:
 
 
 def predict_photo(
-    predictor: Any,
+    predictor: Predictor,
     image: Path,
     folder: Path,
     *,
@@ -341,7 +345,7 @@ def predict_photo(
     )
 
 
-def _posterior_summary(posterior: Any, evidence: bool) -> dict[str, object]:
+def _posterior_summary(posterior: BodyPosterior, evidence: bool) -> dict[str, object]:
     """What ``summary.json`` says about where the distribution comes from."""
     fit = posterior.evidence_fit
     summary: dict[str, object] = {
@@ -480,7 +484,7 @@ def _existing_results(folders: Sequence[Path]) -> list[Path]:
     return [folder for folder in folders if folder.exists() and any(folder.iterdir())]
 
 
-def _predict_into(folder: Path, *args: Any, **kwargs: Any) -> PhotoResult:
+def _predict_into(folder: Path, *args: object, **kwargs: object) -> PhotoResult:
     """:func:`predict_photo` into a temporary folder beside ``folder``, renamed to it once
     everything is written, so a photo's results never mix with older ones and a failure leaves
     nothing half-written (an existing ``folder`` is only replaced on success)."""

@@ -19,11 +19,14 @@ import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
 import trimesh
+
+if TYPE_CHECKING:
+    from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
 
 MESH_FORMATS = ("ply", "glb", "obj")
 """Mesh file formats ``hkpd-predict`` writes with trimesh."""
@@ -121,7 +124,12 @@ def write_distribution_npz(path: Path, arrays: Mapping[str, Any]) -> Path:
     return path
 
 
-def distribution_arrays(posterior: Any, mode: Any, samples: Any, uncertainty: Any) -> dict:
+def distribution_arrays(
+    posterior: BodyPosterior,
+    mode: BodyMeshes,
+    samples: BodyMeshes | None,
+    uncertainty: torch.Tensor,
+) -> dict[str, np.ndarray]:
     """The arrays of the NPZ file, camera-aligned body frame, metres and original-photo pixels.
 
     Args:

@@ -13,7 +13,7 @@ import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, Literal, Protocol
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import torch
 
@@ -25,6 +25,7 @@ from hkpd.uncertainty import vertex_uncertainty
 
 if TYPE_CHECKING:
     from hkpd.conditioning import KeypointFit
+    from hkpd.prediction.network_input import NetworkInput
 
 PosteriorSource = Literal["network", "evidence"]
 """Where a posterior's distribution comes from: the network alone (the paper's method), or the
@@ -102,7 +103,7 @@ class BodyPosterior:
     keypoints: torch.Tensor
     confidences: torch.Tensor
     body: BodyModel
-    network_input: Any = None
+    network_input: NetworkInput | None = None
     source: PosteriorSource = "network"
     prior: BodyPosterior | None = None
     evidence_fit: KeypointFit | None = None
