@@ -474,7 +474,7 @@ def framing(
     left = placement.centre[0] - placement.width_m / 2 - 0.1
     right = HEATMAP_OFFSET + BODY_HALF_SPAN_M
     top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.25
-    bottom = min(placement.centre[1] - placement.height_m / 2, -1.25) - 0.1
+    bottom = min(placement.centre[1] - placement.height_m / 2, -1.45) - 0.1
     tan_v = math.tan(math.radians(CAMERA_FOV_DEG) / 2)
     tan_h = tan_v * aspect
     # The content should fill the part of the canvas that the floating panel leaves free.

@@ -36,7 +36,7 @@ HEATMAP_OFFSET = 1.75
 outstretched arms and their samples never overlap)."""
 PHOTO_GAP = 0.9
 """Metres between the photo's right edge and the body's centre (half an arm span)."""
-LEGEND_HEIGHT = -1.12
+LEGEND_HEIGHT = -1.22
 """World height of the colour bar's centre."""
 OVERLAY_LIFT = -0.004
 """Local z of drawings on the photo (negative: towards the viewer)."""
@@ -109,12 +109,13 @@ class ExplorerScene:
     def show_legend(self) -> None:
         """The colour bar (centimetres) under the heatmap body."""
         with self._lock:
-            legend = legend_image(self.heatmap_max_cm, width=540, height=96)
+            # Large enough that its labels read at the framed distance (they were tiny).
+            legend = legend_image(self.heatmap_max_cm, width=640, height=150)
             self.server.scene.add_image(
                 "/legend",
                 legend,
-                0.9,
-                0.15,
+                1.4,
+                1.4 * 150 / 640,
                 format="png",
                 wxyz=HALF_TURN_ABOUT_X,
                 position=(HEATMAP_OFFSET, LEGEND_HEIGHT, 0.05),
@@ -365,14 +366,19 @@ class ExplorerScene:
             head_radius=0.012,
             head_length=0.03,
         )
-        for i in range(3):
-            self.server.scene.add_label(
-                f"/body/joint_axes_label_{i}",
-                _concentration_text(axes.concentrations[i]),
-                position=tuple((ends[i] + 0.02 * axes.axes[:, i]).tolist()),
-                font_screen_scale=0.9,
-                anchor="center-center",
-            )
+        # One label beside the joint, not one per arrow tip: tips that point at the viewer
+        # crowd together and their numbers overlapped ("2797" printed over "2721").
+        text = " · ".join(
+            f"{name} {_concentration_text(value)}"
+            for name, value in zip(("red", "green", "blue"), axes.concentrations, strict=True)
+        )
+        self.server.scene.add_label(
+            "/body/joint_axes_label",
+            f"{view.axes.joint.replace('_', ' ')}: {text}",
+            position=tuple((axes.origin + np.array([0.12, -0.12, 0.0])).tolist()),
+            font_screen_scale=0.85,
+            anchor="bottom-left",
+        )
 
     def _update_reprojection(self, view: PosteriorView) -> None:
         if self.placement is None:
