@@ -94,6 +94,26 @@ def photo_to_canvas(app, pixels: np.ndarray) -> np.ndarray:
     return np.stack([u * camera.image_width, v * camera.image_height], axis=1)
 
 
+def launch_chromium(playwright):
+    """Debian's chromium, headless, with software WebGL (the flags in ``CHROMIUM_ARGS``)."""
+    return playwright.chromium.launch(
+        executable_path=str(CHROMIUM),
+        args=CHROMIUM_ARGS,
+        env={**os.environ, "EGL_PLATFORM": "surfaceless"},
+    )
+
+
+def shift_drag(page, start: np.ndarray, end: np.ndarray) -> None:
+    """Shift + drag from ``start`` to ``end`` (canvas pixels), as a user draws an occluder."""
+    page.mouse.move(*start)
+    page.keyboard.down("Shift")
+    page.mouse.down()
+    page.mouse.move(*((start + end) / 2), steps=4)
+    page.mouse.move(*end, steps=6)
+    page.mouse.up()
+    page.keyboard.up("Shift")
+
+
 def arm_uncertainty(app) -> float:
     labels = app.result.posterior.body.part_labels.cpu().numpy()
     parts = part_uncertainty(app.view.uncertainty, labels)
@@ -122,11 +142,7 @@ def app():
 def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
     started = time.monotonic()
     with playwright_api.sync_playwright() as playwright:
-        browser = playwright.chromium.launch(
-            executable_path=str(CHROMIUM),
-            args=CHROMIUM_ARGS,
-            env={**os.environ, "EGL_PLATFORM": "surfaceless"},
-        )
+        browser = launch_chromium(playwright)
         page = browser.new_page(viewport=VIEWPORT)
         page.goto(app.url)
         # A second tab at the same time: it must get the same scene and not disturb the state.
@@ -150,13 +166,7 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         wrist = app.demo.keypoints2d[9]
         first = app.result
         corners = photo_to_canvas(app, np.array([wrist - 28, wrist + 28]))
-        page.mouse.move(*corners[0])
-        page.keyboard.down("Shift")
-        page.mouse.down()
-        page.mouse.move(*((corners[0] + corners[1]) / 2), steps=4)
-        page.mouse.move(*corners[1], steps=6)
-        page.mouse.up()
-        page.keyboard.up("Shift")
+        shift_drag(page, corners[0], corners[1])
         wait_for(lambda: len(app.state.snapshot().occluders) == 1, what="the occluder")
         box = app.state.snapshot().occluders[0].box
         assert box[0] <= wrist[0] <= box[2] and box[1] <= wrist[1] <= box[3], box

@@ -21,13 +21,13 @@ import pytest
 from PIL import Image
 from test_explorer_e2e import (
     CANVAS_SHOWN,
-    CHROMIUM,
-    CHROMIUM_ARGS,
     FIGURE,
     VIEWPORT,
     camera_ready,
+    launch_chromium,
     photo_to_canvas,
     playwright_api,
+    shift_drag,
     wait_for,
 )
 
@@ -58,11 +58,7 @@ def app():
 
 def test_shipped_model_on_the_shipped_photo(app, tmp_path):
     with playwright_api.sync_playwright() as playwright:
-        browser = playwright.chromium.launch(
-            executable_path=str(CHROMIUM),
-            args=CHROMIUM_ARGS,
-            env={**os.environ, "EGL_PLATFORM": "surfaceless"},
-        )
+        browser = launch_chromium(playwright)
         page = browser.new_page(viewport=VIEWPORT)
         page.goto(app.url)
         page.wait_for_function(CANVAS_SHOWN, timeout=60_000)
@@ -80,13 +76,7 @@ def test_shipped_model_on_the_shipped_photo(app, tmp_path):
         high = np.maximum(knee, ankle) + 35
         corners = photo_to_canvas(app, np.array([low, high]))
         first = app.result
-        page.mouse.move(*corners[0])
-        page.keyboard.down("Shift")
-        page.mouse.down()
-        page.mouse.move(*((corners[0] + corners[1]) / 2), steps=4)
-        page.mouse.move(*corners[1], steps=6)
-        page.mouse.up()
-        page.keyboard.up("Shift")
+        shift_drag(page, corners[0], corners[1])
         wait_for(lambda: len(app.state.snapshot().occluders) == 1, what="the occluder")
         wait_for(lambda: app.result is not first, timeout=60, what="the new prediction")
         assert app.wait_idle(60)

@@ -189,6 +189,29 @@ class BodyModel(torch.nn.Module):
             :class:`BodyOutput` with vertices ``(B, V, 3)``, joints ``(B, 24, 3)`` and keypoints
             ``(B, 17, 3)`` (or None), metres.
         """
+        posed = self._pose(betas, body_pose, global_orient, transl)
+        chunks = posed.runtime.chunks(chunk_size_for(posed.batch, self.num_vertices, self.device))
+        vertices = blend_and_skin(
+            posed.runtime.template, posed.runtime.blend_shapes, posed.coefficients,
+            posed.transforms, chunks,
+        )  # fmt: skip
+        keypoints = None
+        if posed.runtime.keypoints is not None:
+            keypoints = apply_skinned_readout(
+                posed.runtime.keypoints, posed.coefficients, posed.transforms
+            )
+        joints = posed.joints if transl is None else posed.joints + transl.unsqueeze(1)
+        return BodyOutput(vertices=vertices, joints=joints, keypoints=keypoints)
+
+    def _pose(
+        self,
+        betas: torch.Tensor,
+        body_pose: torch.Tensor,
+        global_orient: torch.Tensor | None,
+        transl: torch.Tensor | None = None,
+    ) -> _Posed:
+        """Check the inputs, then forward kinematics and skinning transforms (shared by
+        :meth:`forward` and :meth:`posed_keypoints`)."""
         betas = self._check_betas(betas)
         batch = betas.shape[0]
         body_joints = self.num_joints - 1
@@ -199,7 +222,6 @@ class BodyModel(torch.nn.Module):
         self._check_tensor("global_orient", global_orient, (batch, 3, 3))
         if transl is not None:
             self._check_tensor("transl", transl, (batch, 3))
-
         runtime = self._runtime_arrays()
         rest_joints = self.rest_joints(betas)
         rotations = torch.cat((global_orient.unsqueeze(1), body_pose), dim=1)
@@ -211,15 +233,7 @@ class BodyModel(torch.nn.Module):
         if self.posedirs is not None:
             pose_features = (body_pose - eye).reshape(batch, body_joints * 9)
             coefficients = torch.cat((betas, pose_features), dim=1)
-        chunks = runtime.chunks(chunk_size_for(batch, self.num_vertices, self.device))
-        vertices = blend_and_skin(
-            runtime.template, runtime.blend_shapes, coefficients, transforms, chunks
-        )
-        keypoints = None
-        if runtime.keypoints is not None:
-            keypoints = apply_skinned_readout(runtime.keypoints, coefficients, transforms)
-        joints = posed_joints if transl is None else posed_joints + transl.unsqueeze(1)
-        return BodyOutput(vertices=vertices, joints=joints, keypoints=keypoints)
+        return _Posed(batch, runtime, posed_joints, transforms, coefficients)
 
     def posed_keypoints(
         self,
@@ -244,28 +258,12 @@ class BodyModel(torch.nn.Module):
             raise ValueError(
                 "this body model has no COCO keypoint regressor (SMPL files do not carry one)"
             )
-        betas = self._check_betas(betas)
-        batch = betas.shape[0]
-        body_joints = self.num_joints - 1
-        self._check_tensor("body_pose", body_pose, (batch, body_joints, 3, 3))
-        eye = torch.eye(3, dtype=self.dtype, device=self.device)
-        if global_orient is None:
-            global_orient = eye.expand(batch, 3, 3)
-        self._check_tensor("global_orient", global_orient, (batch, 3, 3))
-        runtime = self._runtime_arrays()
-        rest_joints = self.rest_joints(betas)
-        rotations = torch.cat((global_orient.unsqueeze(1), body_pose), dim=1)
-        global_rotations, posed_joints = forward_kinematics(
-            rest_joints, rotations, self.parents, runtime.ancestors
+        posed = self._pose(betas, body_pose, global_orient)
+        assert posed.runtime.keypoints is not None  # the regressor exists (checked above)
+        keypoints = apply_skinned_readout(
+            posed.runtime.keypoints, posed.coefficients, posed.transforms
         )
-        transforms = skinning_transforms(global_rotations, posed_joints, rest_joints)
-        coefficients = betas
-        if self.posedirs is not None:
-            pose_features = (body_pose - eye).reshape(batch, body_joints * 9)
-            coefficients = torch.cat((betas, pose_features), dim=1)
-        assert runtime.keypoints is not None  # the regressor exists (checked above)
-        keypoints = apply_skinned_readout(runtime.keypoints, coefficients, transforms)
-        return keypoints, posed_joints
+        return keypoints, posed.joints
 
     # --- helpers ----------------------------------------------------------------------------
 
@@ -310,6 +308,17 @@ class BodyModel(torch.nn.Module):
             f"betas={self.num_betas}, posedirs={self.posedirs is not None}, "
             f"keypoints={self.keypoint_regressor is not None}"
         )
+
+
+@dataclass
+class _Posed:
+    """What posing computes before the vertices: the joints and the skinning transforms."""
+
+    batch: int
+    runtime: _RuntimeArrays
+    joints: torch.Tensor
+    transforms: torch.Tensor
+    coefficients: torch.Tensor
 
 
 def _storage_identity(tensor: torch.Tensor | None) -> tuple | None:

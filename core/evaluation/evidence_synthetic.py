@@ -17,7 +17,8 @@ import torch
 from hkpd.body import BodyModel
 from hkpd.conditioning import BodyEstimate, EvidenceConfig, KeypointEvidence, condition_on_keypoints
 from hkpd.evaluation.metrics import MILLIMETRES_PER_METRE
-from hkpd.evaluation.prediction_metrics import EvaluationTargets, evaluate_prediction
+from hkpd.evaluation.prediction_metrics import evaluate_prediction
+from hkpd.evaluation.synthetic import targets_of
 from hkpd.network.output import NetworkOutput
 from hkpd.synthesis.batch import TrainingBatch
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
@@ -97,13 +98,7 @@ def evaluate_evidence_batches(
             batch.keypoints2d, batch.visible, size, noise, noise_generator
         )
         conditioned, succeeded = condition_batch(output, detected, reported, size, body64, config)
-        targets = EvaluationTargets(
-            joints3d=batch.joints3d,
-            betas=batch.betas,
-            keypoints2d=batch.keypoints2d,
-            visible=batch.visible,
-            body_pose=batch.body_pose,
-        )
+        targets = targets_of(batch)
         for name, prediction in (("network", output), ("evidence", conditioned)):
             generator = torch.Generator(device=batch.proxy.device).manual_seed(seed)
             metrics = evaluate_prediction(prediction, body, targets, num_samples, size, generator)

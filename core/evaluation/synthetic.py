@@ -20,6 +20,17 @@ def _in_reported_units(name: str, value: float) -> float:
     return value * MILLIMETRES_PER_METRE if name.startswith(_METRES) else value
 
 
+def targets_of(batch: TrainingBatch) -> EvaluationTargets:
+    """The ground truth of a synthetic batch, for :func:`evaluate_prediction`."""
+    return EvaluationTargets(
+        joints3d=batch.joints3d,
+        betas=batch.betas,
+        keypoints2d=batch.keypoints2d,
+        visible=batch.visible,
+        body_pose=batch.body_pose,
+    )
+
+
 @torch.no_grad()
 def evaluate_batches(
     network: torch.nn.Module,
@@ -50,13 +61,7 @@ def evaluate_batches(
         if generator is None:
             generator = torch.Generator(device=device).manual_seed(seed)
         output = network(batch.proxy)
-        targets = EvaluationTargets(
-            joints3d=batch.joints3d,
-            betas=batch.betas,
-            keypoints2d=batch.keypoints2d,
-            visible=batch.visible,
-            body_pose=batch.body_pose,
-        )
+        targets = targets_of(batch)
         size = batch.proxy.shape[-1]
         results = evaluate_prediction(output, body, targets, num_samples, size, generator)
         for name, values in results.items():
