@@ -19,6 +19,7 @@ log-scale and translation (3), shape (10).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import roma
@@ -210,7 +211,7 @@ class FitResiduals:
     def __call__(self, state: FitState) -> Residuals:
         """Residuals of ``state`` whose tensors have leading dims ``(N, B)``."""
         lead = state.betas.shape[:-1]
-        flat = int(torch.tensor(lead).prod())
+        flat = math.prod(lead)
         body_pose = state.body_pose().reshape(flat, NUM_BODY_JOINTS, 3, 3)
         keypoints, joints = self.body.posed_keypoints(
             state.betas.reshape(flat, -1), body_pose, state.global_orient().reshape(flat, 3, 3)

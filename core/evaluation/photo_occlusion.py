@@ -9,7 +9,6 @@ and without the box is the response; the other limbs' relative changes should st
 from __future__ import annotations
 
 import numpy as np
-import torch
 from tqdm import tqdm
 
 from hkpd.evaluation.occlusion_response import OCCLUDED_LIMBS, limb_vertex_masks
@@ -98,4 +97,4 @@ def photo_occlusion_response(
     }
 
 
-__all__ = ["LIMB_KEYPOINTS", "limb_box", "photo_occlusion_response", "torch"]
+__all__ = ["LIMB_KEYPOINTS", "limb_box", "photo_occlusion_response"]
