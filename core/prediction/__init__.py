@@ -19,6 +19,8 @@ The pieces:
   (:func:`points_under_boxes`: which keypoints they hide).
 - :func:`prepare_network_input` -> :class:`NetworkInput`: all of the above plus the
   ``(18, 256, 256)`` proxy, i.e. everything in front of the network.
+- :func:`combine_shapes` -> :class:`CombinedShape`: one shape from several photos of the same
+  person (product of the photos' shape Gaussians, or the plain mean as a baseline).
 """
 
 from hkpd.prediction.crop import BOX_CONFIDENCE_THRESHOLD, CropTransform
@@ -39,6 +41,7 @@ from hkpd.prediction.network_input import NetworkInput, prepare_network_input
 from hkpd.prediction.occluders import apply_occluders, points_under_boxes
 from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
 from hkpd.prediction.predictor import Predictor
+from hkpd.prediction.shape_combination import CombinedShape, combine_shapes
 
 __all__ = [
     "BOX_CONFIDENCE_THRESHOLD",
@@ -47,6 +50,7 @@ __all__ = [
     "MIN_IMAGE_SIDE",
     "BodyMeshes",
     "BodyPosterior",
+    "CombinedShape",
     "CropTransform",
     "ImageInputError",
     "KeypointDetection",
@@ -56,6 +60,7 @@ __all__ = [
     "NoPersonFoundError",
     "Predictor",
     "apply_occluders",
+    "combine_shapes",
     "load_image",
     "points_under_boxes",
     "prepare_network_input",
