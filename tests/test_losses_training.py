@@ -234,3 +234,37 @@ def test_losses_work_inside_autocast(body, batch):
     for name, value in outside.items():
         assert inside[name].dtype == torch.float32
         torch.testing.assert_close(inside[name], value)
+
+
+def _shape_gradients(output: NetworkOutput, batch, body, shape_from_nll_only: bool) -> dict:
+    """Gradient norm on the shape mean and std of each term, alone."""
+    norms = {}
+    for term in ("shape_nll", "joints2d_mode", "joints2d_samples", "joints3d_mode"):
+        mean = output.shape_mean.clone().requires_grad_(True)
+        std = output.shape_std.clone().requires_grad_(True)
+        pose = output.F.clone().requires_grad_(True)  # keeps every total in the graph
+        weights = LossWeights(**{name: float(name == term) for name in LOSS_TERMS})
+        terms = compute_losses(
+            replace(output, F=pose, shape_mean=mean, shape_std=std), batch, body, weights,
+            num_samples=2, generator=torch.Generator().manual_seed(0),
+            shape_from_nll_only=shape_from_nll_only,
+        )  # fmt: skip
+        gradients = torch.autograd.grad(terms["total"], (mean, std), allow_unused=True)
+        norms[term] = sum(0.0 if g is None else float(g.norm()) for g in gradients)
+    return norms
+
+
+def test_shape_from_nll_only_leaves_the_shape_to_the_nll(body, batch):
+    off = perturbed(ground_truth_output(batch), 0.3)
+    coupled = _shape_gradients(off, batch, body, shape_from_nll_only=False)
+    alone = _shape_gradients(off, batch, body, shape_from_nll_only=True)
+    for term in ("joints2d_mode", "joints2d_samples", "joints3d_mode"):
+        assert coupled[term] > 1e-4, (term, coupled)  # the joint terms do pull the shape ...
+        assert alone[term] == 0.0, (term, alone)  # ... unless it is detached for them
+    assert alone["shape_nll"] > 0.0
+    assert alone["shape_nll"] == pytest.approx(coupled["shape_nll"])
+    # The joint terms' values do not change, only where their gradients go.
+    plain = compute_losses(off, batch, body, STAGE_ONE_AND_3D)
+    detached = compute_losses(off, batch, body, STAGE_ONE_AND_3D, shape_from_nll_only=True)
+    for name, value in plain.items():
+        torch.testing.assert_close(detached[name], value)

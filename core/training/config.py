@@ -83,6 +83,10 @@ class TrainConfig:
             0 keeps the paper's uniform ±8 px.
         keypoint_outlier_probability: with ``keypoint_noise_sigma``, the share of input
             keypoints replaced by outliers (up to 20 % of the crop away).
+        shape_from_nll_only: only the shape NLL trains the shape head: the 2D and 3D joint
+            losses pose their bodies with the predicted shape detached
+            (:func:`hkpd.training.losses.compute_losses`). Without it, on hard views (rolled,
+            noisy keypoints) the samples loss bends the shape to absorb pose errors.
         max_minutes: stop after this many minutes of training steps (setup and the final
             validation come on top), with a checkpoint that ``--resume`` continues, e.g. on a
             machine lent for a fixed time; None runs all ``steps``. The learning-rate schedule
@@ -122,6 +126,7 @@ class TrainConfig:
     limb_mix_share: float = 0.0
     keypoint_noise_sigma: float = 0.0
     keypoint_outlier_probability: float = 0.0
+    shape_from_nll_only: bool = False
 
     def validate(self) -> TrainConfig:
         """Check every field's range; returns ``self``.

@@ -265,7 +265,10 @@ class TrainingRun:
         weights = setup.schedule.weights_at(setup.step)
         with torch.autocast(setup.device.type, dtype=torch.bfloat16, enabled=self.use_amp):
             output = setup.network(batch.proxy)
-        terms = compute_losses(output, batch, setup.body, weights, self.config.num_samples)
+        terms = compute_losses(
+            output, batch, setup.body, weights, self.config.num_samples,
+            shape_from_nll_only=self.config.shape_from_nll_only,
+        )  # fmt: skip
         setup.optimizer.zero_grad(set_to_none=True)
         terms["total"].backward()
         torch.nn.utils.clip_grad_norm_(setup.network.parameters(), 10.0)
