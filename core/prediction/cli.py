@@ -16,6 +16,11 @@ it writes into ``DIR/<image stem>/``:
 - ``summary.json``: image, detected person, crop, keypoints, uncertainty, files, timings;
 - ``overview.png``: photo with keypoints and skeletons, uncertainty renders and colour bar.
 
+With ``--same-person`` the photos show one person, and ``DIR/same_person_shape/`` also gets
+the shape combined from all photos that succeeded (the precision-weighted product of their shape
+Gaussians; :mod:`hkpd.prediction.combined_shape_export` lists its files): the T-pose mesh, the
+same mesh coloured by shape uncertainty, ``shape.npz`` and ``shape.json``.
+
 Mesh files are in a Y-up display frame (``(x, -y, -z)`` of the camera-aligned body frame; see
 :mod:`hkpd.prediction.exports`). A photo that fails (missing, not an image, no person) is
 reported on one line and skipped; the exit status is 1 when any failed, 2 for a usage error or
@@ -29,15 +34,16 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 import torch
 from PIL import Image
 
+from hkpd.prediction.combined_shape_export import write_combined_shape
 from hkpd.prediction.exports import (
     ARRAY_FORMAT,
     DISPLAY_FRAME_NOTE,
@@ -49,11 +55,14 @@ from hkpd.prediction.exports import (
     write_mesh,
 )
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
+from hkpd.prediction.shape_combination import combine_shape_tensors
 from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
 
 if TYPE_CHECKING:
     from hkpd.prediction.posterior import BodyPosterior
     from hkpd.prediction.predictor import Predictor
+
+_Written = TypeVar("_Written")
 
 IMAGE_EXTENSIONS = IMAGE_SUFFIXES
 """Files with these extensions (any case) are taken from folders."""
@@ -64,6 +73,8 @@ UNCERTAINTY_SAMPLES = 100
 ``--samples``, which only sets how many sample meshes are written)."""
 
 PROG = "hkpd-predict"
+SAME_PERSON_FOLDER = "same_person_shape"
+"""Folder of the combined shape under ``--out`` (a suffix is added if a photo has that name)."""
 
 
 class UsageError(ValueError):
@@ -116,6 +127,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=UNCERTAINTY_SAMPLES,
         metavar="N",
         help=f"posterior samples behind the per-vertex uncertainty (default {UNCERTAINTY_SAMPLES})",
+    )
+    parser.add_argument(
+        "--same-person",
+        action="store_true",
+        help=f"the photos show one person: also write the shape combined from all of them "
+        f"(T-pose mesh, betas mean/std, shape uncertainty) into --out/{SAME_PERSON_FOLDER}",
     )
     parser.add_argument("--device", default="auto", help="auto (CUDA when available), cpu, cuda")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the samples")
@@ -212,6 +229,8 @@ class PhotoResult:
     seconds: float = 0.0
     person_box: tuple[float, ...] | None = None
     note: str | None = None
+    shape_mean: torch.Tensor | None = None
+    shape_std: torch.Tensor | None = None
 
 
 def _timed(timings: dict[str, float], name: str, start: float) -> float:
@@ -342,6 +361,8 @@ def predict_photo(
         seconds=timings["total_s"],
         person_box=tuple(float(v) for v in detection.person_box),
         note=posterior.fallback_reason and f"network posterior ({posterior.fallback_reason})",
+        shape_mean=posterior.shape_mean.detach().cpu(),
+        shape_std=posterior.shape_std.detach().cpu(),
     )
 
 
@@ -398,7 +419,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not images:
         print(f"{PROG}: error: no images found in {' '.join(args.inputs)}", file=sys.stderr)
         return 2
-    taken = _existing_results([args.out / name for name in output_names(images)])
+    names = output_names(images)
+    combined_name = _free_name(SAME_PERSON_FOLDER, names)
+    folders = [args.out / name for name in names]
+    taken = _existing_results(folders + ([args.out / combined_name] if args.same_person else []))
     if taken and not args.overwrite:
         shown = ", ".join(str(folder) for folder in taken[:3]) + (" ..." if len(taken) > 3 else "")
         print(f"{PROG}: error: {len(taken)} result folder(s) already exist ({shown}); pass "
@@ -424,7 +448,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     results: list[PhotoResult] = []
     try:
         progress = tqdm(
-            list(zip(images, output_names(images), strict=True)),
+            list(zip(images, names, strict=True)),
             desc=PROG,
             unit="photo",
             file=sys.stderr,
@@ -460,6 +484,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                     + (f" [{result.note}]" if result.note else ""),
                     file=sys.stdout,
                 )
+        combined = None
+        if args.same_person:
+            try:
+                combined = _combine_into(
+                    args.out / combined_name, predictor, results, formats, scale
+                )
+            except (ValueError, OSError) as error:
+                combined = f"combined shape FAILED: {_one_line(error)}"
+                print(f"{PROG}: {combined}", file=sys.stderr)
     except KeyboardInterrupt:
         print(f"\n{PROG}: interrupted after {len(results)} of {len(images)} photos; the "
               "folders written so far are complete", file=sys.stderr)  # fmt: skip
@@ -475,8 +508,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     written = (
         f"wrote {files} files in {done} folder(s) under {args.out}" if done else "nothing written"
     )
+    if combined is not None:
+        written += f"; {combined}"
     print(f"{PROG}: {done} of {len(results)} photos done, {len(failed)} failed; {written}")
-    return 1 if failed else 0
+    return 1 if failed or (combined or "").startswith("combined shape FAILED") else 0
 
 
 def _existing_results(folders: Sequence[Path]) -> list[Path]:
@@ -484,21 +519,67 @@ def _existing_results(folders: Sequence[Path]) -> list[Path]:
     return [folder for folder in folders if folder.exists() and any(folder.iterdir())]
 
 
-def _predict_into(folder: Path, *args: object, **kwargs: object) -> PhotoResult:
-    """:func:`predict_photo` into a temporary folder beside ``folder``, renamed to it once
-    everything is written, so a photo's results never mix with older ones and a failure leaves
-    nothing half-written (an existing ``folder`` is only replaced on success)."""
+def _free_name(name: str, taken: Sequence[str]) -> str:
+    """``name``, or ``name_2``, ``name_3`` ... when a photo's folder already has it."""
+    candidate, count = name, 2
+    while candidate in taken:
+        candidate, count = f"{name}_{count}", count + 1
+    return candidate
+
+
+def _written_atomically(folder: Path, write: Callable[[Path], _Written]) -> _Written:
+    """``write(partial)`` into a temporary folder beside ``folder``, renamed to it once
+    everything is written, so results never mix with older ones and a failure leaves nothing
+    half-written (an existing ``folder`` is only replaced on success)."""
     partial = folder.with_name(f".{folder.name}.partial")
     shutil.rmtree(partial, ignore_errors=True)
     try:
-        result = predict_photo(*args, folder=partial, **kwargs)
+        written = write(partial)
         if folder.exists():
             shutil.rmtree(folder)
         partial.rename(folder)
     finally:
         shutil.rmtree(partial, ignore_errors=True)
+    return written
+
+
+def _predict_into(folder: Path, *args: object, **kwargs: object) -> PhotoResult:
+    """:func:`predict_photo` into ``folder``, atomically (:func:`_written_atomically`)."""
+
+    def write(partial: Path) -> PhotoResult:
+        return predict_photo(*args, folder=partial, **kwargs)
+
+    result = _written_atomically(folder, write)
     result.folder = folder
     return result
+
+
+def _combine_into(
+    folder: Path,
+    predictor: Predictor,
+    results: Sequence[PhotoResult],
+    formats: Sequence[str],
+    scale: UncertaintyColourScale,
+) -> str:
+    """Write the shape combined from the photos that succeeded into ``folder`` (atomically)
+    and say what was written, for the final line."""
+    done = [result for result in results if result.error is None and result.shape_mean is not None]
+    if not done:
+        return "no combined shape (no photo succeeded)"
+    means = torch.stack([result.shape_mean for result in done])
+    stds = torch.stack([result.shape_std for result in done])
+    combined = combine_shape_tensors(means, stds, predictor.body, "product")
+    baseline = combine_shape_tensors(means, stds, predictor.body, "mean")
+    files = _written_atomically(
+        folder,
+        lambda partial: write_combined_shape(
+            partial, combined, baseline, [r.image for r in done], means, stds, formats, scale
+        ),
+    )
+    return (
+        f"combined shape of {len(done)} photo(s) (mean std {combined.mean_std:.3f}, one photo "
+        f"{float(stds.mean()):.3f}): {len(files)} files in {folder}"
+    )
 
 
 if __name__ == "__main__":

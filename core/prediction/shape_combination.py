@@ -244,6 +244,22 @@ def combine_shapes(
             method.
     """
     means, stds = stack_shape_distributions(distributions)
+    return combine_shape_tensors(means, stds, body, method, uncertainty_samples, seed)
+
+
+def combine_shape_tensors(
+    means: torch.Tensor,
+    stds: torch.Tensor,
+    body: BodyModel,
+    method: CombinationMethod = "product",
+    uncertainty_samples: int = SHAPE_UNCERTAINTY_SAMPLES,
+    seed: int = 0,
+) -> CombinedShape:
+    """:func:`combine_shapes` of the photos' shape Gaussians given as ``means`` and ``stds``
+    ``(N, K)`` (checked the same way)."""
+    means, stds = _checked(means, stds)
+    if means.dim() != 2:
+        raise ValueError(f"means and stds must be (N, K), got {tuple(means.shape)}")
     if means.shape[-1] != body.num_betas:
         raise ValueError(
             f"the photos have {means.shape[-1]} shape coefficients but the body model has "
