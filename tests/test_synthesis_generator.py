@@ -156,3 +156,25 @@ def test_limb_boxes_hide_their_keypoints(generator) -> None:
     assert under_box.any()
     assert not (rendered.batch.visible & under_box).any()
     assert (clean.batch.visible & under_box).any()  # they were visible before the box
+
+
+def test_fixed_betas_change_only_the_shape(generator) -> None:
+    drawn = generator.generate_packed(3, seed=11)
+    betas = torch.linspace(-2, 2, 30).reshape(3, 10)
+    fixed = generator.generate_packed(3, seed=11, betas=betas)
+    torch.testing.assert_close(fixed.betas, betas)
+    assert not torch.equal(fixed.betas, drawn.betas)
+    # Every other draw is the seed's: same poses, orientations and camera distances.
+    torch.testing.assert_close(fixed.body_pose, drawn.body_pose)
+    torch.testing.assert_close(fixed.global_orient, drawn.global_orient)
+    torch.testing.assert_close(fixed.translation, drawn.translation)
+    assert not torch.equal(fixed.joints3d, drawn.joints3d)  # another body shape
+    # Several views of one body: the same betas under different seeds.
+    one_body = betas[:1].expand(3, 10)
+    views = [generator.generate_packed(3, seed, one_body) for seed in (1, 2)]
+    torch.testing.assert_close(views[0].betas, views[1].betas)
+    assert not torch.equal(views[0].body_pose, views[1].body_pose)
+    with pytest.raises(ValueError, match=r"betas must have shape \(3, 10\) for a batch of 3"):
+        generator.generate(3, seed=11, betas=torch.zeros(2, 10))
+    with pytest.raises(ValueError, match="finite"):
+        generator.generate(3, seed=11, betas=torch.full((3, 10), float("nan")))

@@ -138,20 +138,45 @@ class SyntheticDataGenerator:
         self.textures = ClothingTextureSampler(self.body.v_template, faces, self.body.part_labels)
         self.backgrounds = BackgroundSource(Path(background_dir) if background_dir else None)
 
-    def generate(self, count: int, seed: int) -> RenderedBatch:
-        """One batch of ``count`` examples, fully determined by ``seed``."""
-        packed, images, part_map = self._make(count, seed)
+    def generate(self, count: int, seed: int, betas: torch.Tensor | None = None) -> RenderedBatch:
+        """One batch of ``count`` examples, fully determined by ``seed``.
+
+        Args:
+            count: examples in the batch.
+            seed: the batch's seed.
+            betas: optional ``(count, K)`` shape coefficients to use instead of drawn ones
+                (e.g. several views of one body: the same betas under different seeds). Every
+                other draw, the drawn betas included, is made as without it, so poses, cameras,
+                clothing and augmentations are those of ``seed`` either way.
+        """
+        packed, images, part_map = self._make(count, seed, betas)
         return RenderedBatch(
             packed.unpack(), images, part_map, packed.input_keypoints, packed.input_present
         )
 
-    def generate_packed(self, count: int, seed: int) -> PackedBatch:
-        """The batch :meth:`generate` makes for ``seed``, with its heatmaps not yet drawn
-        (``generate_packed(n, s).unpack()`` equals ``generate(n, s).batch``)."""
-        return self._make(count, seed)[0]
+    def generate_packed(
+        self, count: int, seed: int, betas: torch.Tensor | None = None
+    ) -> PackedBatch:
+        """The batch :meth:`generate` makes for ``seed`` (and ``betas``), with its heatmaps not
+        yet drawn (``generate_packed(n, s).unpack()`` equals ``generate(n, s).batch``)."""
+        return self._make(count, seed, betas)[0]
 
-    def _make(self, count: int, seed: int) -> tuple[PackedBatch, np.ndarray, torch.Tensor]:
-        """The packed batch, its ``(B, S, S, 3)`` uint8 images and ``(B, S, S)`` part map."""
+    def _fixed_betas(self, betas: torch.Tensor, count: int) -> torch.Tensor:
+        """``betas`` as a ``(count, K)`` float tensor on the device, or a ValueError."""
+        betas = torch.as_tensor(betas)
+        expected = (count, self.body.num_betas)
+        if tuple(betas.shape) != expected:
+            raise ValueError(f"betas must have shape {expected} for a batch of {count}, got "
+                             f"{tuple(betas.shape)}")  # fmt: skip
+        if not bool(torch.isfinite(betas).all()):
+            raise ValueError("betas must be finite numbers")
+        return betas.to(self.device, torch.float32)
+
+    def _make(
+        self, count: int, seed: int, fixed_betas: torch.Tensor | None = None
+    ) -> tuple[PackedBatch, np.ndarray, torch.Tensor]:
+        """The packed batch, its ``(B, S, S, 3)`` uint8 images and ``(B, S, S)`` part map
+        (with ``fixed_betas`` instead of the drawn shapes when given)."""
         generator = torch.Generator().manual_seed(seed)
         config, device, size = self.config, self.device, self.config.image_size
         augment = config.augmentation
@@ -172,7 +197,9 @@ class SyntheticDataGenerator:
         global_orient = camera_rotation.to(device) @ world_orient
         betas = (
             torch.randn(count, self.body.num_betas, generator=generator) * config.shape_std
-        ).to(device)
+        ).to(device)  # drawn even when fixed: the random stream stays the same
+        if fixed_betas is not None:
+            betas = self._fixed_betas(fixed_betas, count)
         translation, focal_full = sample_cameras(count, generator, device)
         translation, focal_full = translation.float(), focal_full.float()
 
