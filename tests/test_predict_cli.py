@@ -9,6 +9,7 @@ proxy, network, posterior, exports, overview) runs for real.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -32,8 +33,9 @@ NUM_VERTICES = 13492
 class TruthDetector:
     """Returns fixed keypoints for any photo with content; raises on a blank photo."""
 
-    def __init__(self, keypoints: np.ndarray) -> None:
+    def __init__(self, keypoints: np.ndarray, confidences: np.ndarray | None = None) -> None:
         self.keypoints = keypoints
+        self.confidences = np.linspace(0.3, 1.0, 17) if confidences is None else confidences
         self.calls: list[object] = []
 
     def detect(self, image, bbox=None) -> KeypointDetection:
@@ -44,7 +46,7 @@ class TruthDetector:
         box = np.concatenate([self.keypoints.min(0), self.keypoints.max(0)])
         return KeypointDetection(
             keypoints=self.keypoints.copy(),
-            confidences=np.linspace(0.3, 1.0, 17),
+            confidences=self.confidences.copy(),
             person_box=box,
             mask_box=None,
             search_box=None if bbox is None else np.asarray(bbox, np.float64),
@@ -439,3 +441,47 @@ def test_existing_results_are_refused_unless_overwrite_replaces_them(
                      str(checkpoint)]) == 1  # fmt: skip
     assert "nothing written" in capsys.readouterr().out
     assert not (tmp_path / "b" / "blank").exists()  # a failed photo leaves no folder
+
+
+class ConstantOrientation(torch.nn.Module):
+    """A network whose global rotation is always the identity (the rest is the wrapped one's)."""
+
+    def __init__(self, network: torch.nn.Module) -> None:
+        super().__init__()
+        self.network, self.config = network, network.config
+
+    def forward(self, proxy: torch.Tensor):
+        from dataclasses import replace
+
+        output = self.network(proxy)
+        return replace(output, global_orient=torch.eye(3).expand(proxy.shape[0], 3, 3).clone())
+
+
+def test_a_lying_person_is_read_by_the_network_from_an_upright_copy(scene, checkpoint):
+    from hkpd.prediction.predictor import Predictor
+    from hkpd.training.checkpoint import load_network
+
+    height = scene.image.shape[0]
+    lying = np.ascontiguousarray(np.rot90(scene.image, k=-1))  # turned 90° clockwise
+    u, v = scene.keypoints2d[:, 0], scene.keypoints2d[:, 1]
+    keypoints = np.stack([height - 1 - v, u], -1)
+    network, _ = load_network(checkpoint, "cpu")
+    detector = TruthDetector(keypoints, confidences=np.ones(17))
+    predictor = Predictor(ConstantOrientation(network), "cpu", detector=detector)
+
+    as_is = predictor.predict(lying, evidence=False, upright=False)
+    assert as_is.upright_tilt_degrees is None
+    torch.testing.assert_close(as_is.global_orient, torch.eye(3), rtol=0, atol=0)
+    read_upright = predictor.predict(lying, evidence=False)
+    assert read_upright.source == "network"
+    assert abs(abs(read_upright.upright_tilt_degrees) - 90.0) < 10.0
+    # The copy's answer (identity) comes back turned about the optical axis by the lean.
+    rotation = read_upright.global_orient.double()
+    turned = math.degrees(math.atan2(float(rotation[1, 0]), float(rotation[0, 0])))
+    assert abs(turned - read_upright.upright_tilt_degrees) < 1e-3, turned
+    assert abs(float(rotation[2, 2]) - 1.0) < 1e-5
+    # An upright person is read as is.
+    predictor.detector = TruthDetector(scene.keypoints2d, confidences=np.ones(17))
+    standing = predictor.predict(scene.image, evidence=False)
+    assert standing.upright_tilt_degrees is None
+    torch.testing.assert_close(standing.global_orient, torch.eye(3), rtol=0, atol=0)

@@ -92,6 +92,9 @@ class BodyPosterior:
             why it fell back (``evidence_fit.reason``); None when no fit was asked for.
         evidence: ``(17,)`` bool, the keypoints that counted as evidence (confident and not
             under an occluder); None when unknown.
+        upright_tilt_degrees: the network read a copy of the crop turned upright by this many
+            degrees (the detected torso's lean, clockwise on screen) and its answer was mapped
+            back to the photo; None when it read the crop as it is.
     """
 
     F: torch.Tensor
@@ -108,6 +111,7 @@ class BodyPosterior:
     prior: BodyPosterior | None = None
     evidence_fit: KeypointFit | None = None
     evidence: torch.Tensor | None = None
+    upright_tilt_degrees: float | None = None
 
     @property
     def conditioned(self) -> bool:
