@@ -7,6 +7,7 @@ Examples::
     hkpd-eval runs/a/last.pt --poses poses.npz --out report.md
     hkpd-eval runs/a/last.pt --poses poses.npz --concentration-scale 0.5 1 2   # calibration
     hkpd-eval runs/a/last.pt --poses poses.npz --coco coco_mini --evidence     # + 2D evidence
+    hkpd-eval runs/a/last.pt --poses poses.npz --no-synthetic --multi-view-shape 100  # 5 photos
 
 With ``--evidence`` every evaluation also scores the keypoint-evidence posterior next to the
 network's own (``docs/evidence.md``): on the synthetic test set the evidence is the exact
@@ -97,6 +98,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --coco: also measure BlazePose against the human keypoints (jitter, misses, "
         "swaps, outliers; the numbers behind the detector-like noise)",
     )
+    parser.add_argument(
+        "--multi-view-shape",
+        type=int,
+        default=0,
+        metavar="BODIES",
+        help="also score shape from 1-5 photos of one person on this many synthetic bodies "
+        "(5 renders each: single image, mean and probabilistic combination; e.g. 100)",
+    )
     parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
     parser.add_argument("--device", default="auto")
     parser.add_argument("--out", type=Path, help="also write the markdown report here")
@@ -179,6 +188,8 @@ def main(argv: list[str] | None = None) -> int:
                 raise ValueError(f"--{name} must be at least 1, got {getattr(arguments, name)}")
         if arguments.occlusion_cases < 0:
             raise ValueError("--occlusion-cases must be >= 0")
+        if arguments.multi_view_shape < 0:
+            raise ValueError("--multi-view-shape must be >= 0")
         for flag, path in (("--out", arguments.out), ("--figure", arguments.figure)):
             if path is not None:
                 _check_writable(flag, path)
@@ -328,7 +339,29 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             "forearm or lower leg covered by a black box\n\n"
             + markdown_table(rows, list(next(iter(rows.values()))))
         )
+    if arguments.multi_view_shape > 0:
+        report.append(_multi_view_shape_report(arguments, device))
     return "\n".join(report)
+
+
+def _multi_view_shape_report(arguments: argparse.Namespace, device: torch.device) -> str:
+    """The multi-photo shape table of every checkpoint (:mod:`hkpd.evaluation.multi_view_shape`)."""
+    from hkpd.evaluation import multi_view_shape as multi
+
+    parts = []
+    for checkpoint in arguments.checkpoints:
+        network, generator = _network_and_test_generator(checkpoint, arguments.poses, device)
+        predictions = multi.predict_multi_view_shapes(
+            network.eval(), generator, arguments.multi_view_shape, views=5
+        )
+        rows = multi.labelled(multi.multi_view_shape_table(predictions, generator.body))
+        parts.append(
+            f"### Shape from 1-5 photos of one person: {checkpoint}, "
+            f"{arguments.multi_view_shape} synthetic bodies x 5 views (test poses, seed "
+            f"{multi.MULTI_VIEW_SEED}; every subset of n views)\n\n"
+            + markdown_table(rows, list(next(iter(rows.values()))))
+        )
+    return "\n\n".join(parts)
 
 
 def _detector_error_table(people: list, arguments: argparse.Namespace) -> str:
