@@ -2,8 +2,10 @@
 
 Threads: viser runs callbacks on its thread pool; they only change :class:`ExplorerState` and
 submit jobs. The single :class:`CoalescingWorker` runs predictions (lane ``"predict"``,
-debounced), new photos (``"image"``), sampling (``"sample"``) and exports (``"export"``), and
-pushes the results to the global scene, which viser broadcasts to every tab.
+debounced), new photos (``"image"``), sampling (``"sample"``), further photos of the same person
+(``"same_person"``: their uploads queue up, one job predicts them all and shows the combined
+shape) and exports (``"export"``), and pushes the results to the global scene, which viser
+broadcasts to every tab.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import torch
 import viser
 
 from hkpd.distributions import MatrixFisher
@@ -27,13 +30,14 @@ from hkpd.explorer.photo_geometry import (
 )
 from hkpd.explorer.posterior_view import PosteriorView, compute_view
 from hkpd.explorer.provider import PosteriorProvider, PredictionResult
-from hkpd.explorer.scene import HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
-from hkpd.explorer.state import MAX_OCCLUDERS, ExplorerState
+from hkpd.explorer.scene import COMBINED_OFFSET, HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
+from hkpd.explorer.state import MAX_OCCLUDERS, MAX_SAME_PERSON_PHOTOS, ExplorerState
 from hkpd.explorer.upload import UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
 from hkpd.kinematic_tree import body_joint_index
 from hkpd.prediction.fit_overlay import FitOverlay, render_fit_overlay
 from hkpd.prediction.keypoint_detector import NoPersonFoundError
+from hkpd.prediction.shape_combination import CombinedShape, combine_shape_tensors
 
 PREDICTION_DEBOUNCE_S = 0.12
 """Occluder edits closer together than this trigger one prediction."""
@@ -51,6 +55,7 @@ BODY_HALF_SPAN_M = 0.95
 (outstretched arms reach ~0.85 m), so its hand never goes under the panel."""
 SCREENSHOT_SIZE = (720, 1280)
 """``(height, width)`` of the screenshot requested from the browser."""
+ONLY_CURRENT_PHOTO = "*Only the current photo so far.*"
 
 
 @dataclass
@@ -101,7 +106,10 @@ class ExplorerApp:
         self._result: PredictionResult | None = None
         self._view: PosteriorView | None = None
         self._framed: PhotoPlacement | None = None
-        self.worker = CoalescingWorker(("image", "predict", "sample", "export"), self._job_failed)
+        self._same_person_queue: list[tuple[np.ndarray, str, viser.ClientHandle | None, int]] = []
+        self._combined: CombinedShape | None = None
+        lanes = ("image", "predict", "sample", "same_person", "export")
+        self.worker = CoalescingWorker(lanes, self._job_failed)
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         self.scene = ExplorerScene(self.server)
@@ -139,6 +147,13 @@ class ExplorerApp:
         """The last prediction."""
         with self._lock:
             return self._result
+
+    @property
+    def combined_shape(self) -> CombinedShape | None:
+        """The shape combined from the current photo and the added photos of the same person
+        (None until a photo is added)."""
+        with self._lock:
+            return self._combined
 
     def wait_idle(self, timeout: float = 30.0) -> bool:
         """Block until no work is pending (for tests and benchmarks)."""
@@ -234,6 +249,33 @@ class ExplorerApp:
             self._notify(client, "Photo not loaded", str(error), error=True)
             return
         self.worker.submit("image", lambda: self._image_job(image, name, client))
+
+    def add_same_person_upload(
+        self, name: str, content: bytes, client: viser.ClientHandle | None
+    ) -> None:
+        """Check an uploaded further photo of the current person now; predict its shape and
+        show the combined shape in the worker. Errors notify ``client``."""
+        try:
+            image = decode_upload(name, content)
+        except UploadError as error:
+            self._notify(client, "Photo not added", str(error), error=True)
+            return
+        self.add_same_person_photo(image, name, client)
+
+    def add_same_person_photo(
+        self, image: np.ndarray, name: str, client: viser.ClientHandle | None = None
+    ) -> None:
+        """Add ``image`` ``(H, W, 3)`` uint8 as one more photo of the current photo's person
+        (queued: photos added quickly one after the other are all kept)."""
+        image = _check_image(image)
+        with self._lock:
+            self._same_person_queue.append((image, name, client, self._image_token))
+        self.worker.submit("same_person", self._same_person_job)
+
+    def clear_same_person(self) -> None:
+        """Forget the added photos of the person (the combined shape disappears)."""
+        if self.state.clear_same_person():
+            self.worker.submit("same_person", self._same_person_job)
 
     def request_export(self, file_format: str, client: viser.ClientHandle) -> None:
         self.worker.submit("export", lambda: self._export_job(file_format, client))
@@ -365,6 +407,75 @@ class ExplorerApp:
         )
         self.panels.show_proxy(result.proxy)
         self._sample_job()
+        if self.state.snapshot().same_person or self.scene.combined_shown:
+            self._show_combined()
+
+    def _same_person_job(self) -> None:
+        """Predict the queued photos of the same person, keep their shapes, show the result."""
+        with self._lock:
+            queue, self._same_person_queue = self._same_person_queue, []
+        evidence = self.state.snapshot().evidence
+        for image, name, client, token in queue:
+            try:
+                posterior = self.provider.predict(image, [], evidence=evidence).posterior
+            except NoPersonFoundError:
+                self._notify(client, "Photo not added", f"{name}: no person found.", error=True)
+                continue
+            except Exception as error:  # the predictor's own message says what is wrong
+                self._notify(client, "Photo not added", f"{name}: {error}", error=True)
+                continue
+            mean = tuple(posterior.shape_mean.detach().cpu().double().tolist())
+            std = tuple(posterior.shape_std.detach().cpu().double().tolist())
+            with self._lock:  # a new photo (a new person) replaces the token and the set
+                current = token == self._image_token
+                added = current and self.state.add_same_person_shape(name, mean, std)
+            if not current:
+                reason = f"{name}: a new photo was loaded meanwhile; add it for the new person."
+                self._notify(client, "Photo not added", reason, error=True)
+            elif not added:
+                reason = f"At most {MAX_SAME_PERSON_PHOTOS} further photos: forget some first."
+                self._notify(client, "Photo not added", reason, error=True)
+            else:
+                count = len(self.state.snapshot().same_person) + 1
+                self._notify(client, "Photo added", f"{name}: {count} photos of this person")
+        self._show_combined()
+
+    def _show_combined(self) -> None:
+        """Draw (or remove) the shape combined from the current photo and the added ones."""
+        with self._lock:
+            result = self._result
+        added = self.state.snapshot().same_person
+        was_shown = self.scene.combined_shown
+        if result is None or not added:
+            with self._lock:
+                self._combined = None
+            self.scene.show_combined_shape(None, None)
+            self.panels.show_same_person(ONLY_CURRENT_PHOTO)
+        else:
+            posterior = result.posterior
+            current = (posterior.shape_mean.detach().cpu().double(),
+                       posterior.shape_std.detach().cpu().double())  # fmt: skip
+            means = torch.stack([current[0], *(torch.tensor(s.mean).double() for s in added)])
+            stds = torch.stack([current[1], *(torch.tensor(s.std).double() for s in added)])
+            combined = combine_shape_tensors(means, stds, posterior.body)
+            with self._lock:
+                self._combined = combined
+            uncertainty = combined.vertex_uncertainty.detach().cpu().numpy()
+            title = f"Combined shape · {combined.count} photos · std {combined.mean_std:.2f}"
+            self.scene.show_combined_shape(
+                combined.tpose_vertices.detach().cpu().numpy(), uncertainty, title
+            )
+            names = ", ".join(s.name for s in added)
+            self.panels.show_same_person(
+                f"**{combined.count} photos** of this person (the current one + {names}).\n\n"
+                f"Mean shape std {combined.mean_std:.3f} (current photo alone "
+                f"{float(current[1].mean()):.3f}); T-pose vertex uncertainty "
+                f"{float(uncertainty.mean()) * 100:.2f} cm on average."
+            )
+        with self._lock:
+            placement = self._framed
+        if placement is not None and was_shown != self.scene.combined_shown:
+            self._frame_camera(placement)  # make room for the combined body, or take it back
 
     def _sample_job(self) -> None:
         with self._lock:
@@ -423,7 +534,7 @@ class ExplorerApp:
         """Frame the photo, the bodies and the heatmap for new tabs and every open tab."""
         with self._lock:
             self._framed = placement
-        position, look_at = framing(placement, ASSUMED_ASPECT)
+        position, look_at = framing(placement, ASSUMED_ASPECT, combined=self.scene.combined_shown)
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
         for client in self.server.get_clients().values():
@@ -446,7 +557,9 @@ class ExplorerApp:
                     aspect = ASSUMED_ASPECT
                 else:
                     time.sleep(0.05)
-        position, look_at = framing(placement, aspect, float(np.clip(free, 0.5, 1.0)))
+        position, look_at = framing(
+            placement, aspect, float(np.clip(free, 0.5, 1.0)), self.scene.combined_shown
+        )
         client.camera.position = position
         client.camera.look_at = look_at
 
@@ -462,7 +575,10 @@ class ExplorerApp:
 
 
 def framing(
-    placement: PhotoPlacement, aspect: float, free_fraction: float = FREE_CANVAS_FRACTION
+    placement: PhotoPlacement,
+    aspect: float,
+    free_fraction: float = FREE_CANVAS_FRACTION,
+    combined: bool = False,
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Camera ``(position, look_at)`` showing photo, bodies and heatmap left of the panel.
 
@@ -470,9 +586,10 @@ def framing(
         placement: where the photo is.
         aspect: canvas width / height.
         free_fraction: part of the canvas width left of the floating panel.
+        combined: also show the combined-shape body of the same person's photos.
     """
     left = placement.centre[0] - placement.width_m / 2 - 0.1
-    right = HEATMAP_OFFSET + BODY_HALF_SPAN_M
+    right = (COMBINED_OFFSET if combined else HEATMAP_OFFSET) + BODY_HALF_SPAN_M
     top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.25
     bottom = min(placement.centre[1] - placement.height_m / 2, -1.45) - 0.1
     tan_v = math.tan(math.radians(CAMERA_FOV_DEG) / 2)

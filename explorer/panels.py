@@ -44,6 +44,10 @@ class PanelActions(Protocol):
         self, samples: bool, heatmap: bool, reprojection: bool, heatmap_max_cm: float
     ) -> bool: ...
     def load_upload(self, name: str, content: bytes, client: viser.ClientHandle | None) -> None: ...
+    def add_same_person_upload(
+        self, name: str, content: bytes, client: viser.ClientHandle | None
+    ) -> None: ...
+    def clear_same_person(self) -> None: ...
     def request_export(self, file_format: str, client: viser.ClientHandle) -> None: ...
     def request_screenshot(self, client: viser.ClientHandle) -> None: ...
 
@@ -120,6 +124,23 @@ class ExplorerPanels:
             self.occluder_folder = gui.add_folder("Occluders", expand_by_default=True)
             self._occluder_handles: list[viser.GuiFolderHandle] = []
             self._occluder_signature: tuple = ()
+
+        with gui.add_folder("Same person, more photos", expand_by_default=False):
+            gui.add_markdown(
+                "*More photos of the person in the current photo sharpen their shape: the "
+                "shape distributions are multiplied (right-most body, T-pose, coloured by "
+                "shape uncertainty).*"
+            )
+            self.same_person_upload = gui.add_upload_button(
+                "Add a photo of the same person",
+                icon=viser.Icon.USER_PLUS,
+                mime_type="image/*",
+                hint="Only its shape is used; the current photo stays on screen",
+            )
+            self.same_person_upload.on_upload(self._on_same_person_upload)
+            self.same_person_text = gui.add_markdown("*Only the current photo so far.*")
+            clear_same = gui.add_button("Forget the added photos", icon=viser.Icon.TRASH)
+            clear_same.on_click(lambda _: app.clear_same_person())
 
         with gui.add_folder("Concentration"):
             low, high = CONCENTRATION_EXPONENT_RANGE
@@ -225,6 +246,14 @@ class ExplorerPanels:
     def _on_upload(self, event) -> None:
         uploaded = self.upload.value
         self.app.load_upload(uploaded.name, uploaded.content, event.client)
+
+    def _on_same_person_upload(self, event) -> None:
+        uploaded = self.same_person_upload.value
+        self.app.add_same_person_upload(uploaded.name, uploaded.content, event.client)
+
+    def show_same_person(self, text: str) -> None:
+        """What the combined shape is made of (photos, std) or that there is none."""
+        self.same_person_text.content = text
 
     def _start_picking(self) -> None:
         self.app.pick_person_next(True)

@@ -2,8 +2,10 @@
 
 Layout (world y up, viewer on +z): the photo on the left, the mode body with its sample
 "ghosts" in the middle, and a second copy of the mode coloured by per-vertex uncertainty on the
-right. Photo and bodies live in nodes turned to OpenCV axes (see :mod:`photo_geometry`), so
-pixel and body-frame coordinates are used as they are.
+right; once further photos of the same person are added, their combined shape stands in a
+T-pose, coloured by shape uncertainty, right of that. Photo and bodies live in nodes turned to
+OpenCV axes (see :mod:`photo_geometry`), so pixel and body-frame coordinates are used as they
+are.
 
 The per-vertex heatmap is a coloured point cloud over the vertices of a neutral mesh:
 ``add_mesh_simple`` has one colour per mesh, and updating a point cloud's colours and positions
@@ -34,6 +36,8 @@ BODY_POSITION = (0.0, 0.0, 0.0)
 HEATMAP_OFFSET = 1.75
 """Metres between the sample body and the heatmap body (an arm span, ~1.7 m, so that
 outstretched arms and their samples never overlap)."""
+COMBINED_OFFSET = HEATMAP_OFFSET + 1.9
+"""x of the combined-shape body (a T-pose arm span, ~1.7 m, right of the heatmap body)."""
 PHOTO_GAP = 0.9
 """Metres between the photo's right edge and the body's centre (half an arm span)."""
 LEGEND_HEIGHT = -1.22
@@ -65,6 +69,8 @@ class ExplorerScene:
         self._occluder_nodes: list[viser.SceneNodeHandle] = []
         self._person_node: viser.SceneNodeHandle | None = None
         self._fit_node: viser.SceneNodeHandle | None = None
+        self._combined: list[viser.SceneNodeHandle] = []
+        self.combined_shown = False
         server.scene.set_up_direction("+y")
         server.scene.world_axes.visible = False
         self.scene_body = server.scene.add_frame(
@@ -73,6 +79,10 @@ class ExplorerScene:
         self.scene_heat = server.scene.add_frame(
             "/heat", wxyz=HALF_TURN_ABOUT_X, position=(HEATMAP_OFFSET, 0.0, 0.0), show_axes=False
         )
+        self.scene_combined = server.scene.add_frame(
+            "/combined", wxyz=HALF_TURN_ABOUT_X, position=(COMBINED_OFFSET, 0.0, 0.0),
+            show_axes=False,
+        )  # fmt: skip
         server.scene.add_grid(
             "/floor",
             width=8.0,
@@ -265,6 +275,37 @@ class ExplorerScene:
                         anchor="bottom-left",
                     )
                 )
+
+    # ------------------------------------------------------------------ same person
+    def show_combined_shape(
+        self, vertices: np.ndarray | None, uncertainty_m: np.ndarray | None, title: str = ""
+    ) -> None:
+        """The shape combined from several photos: ``vertices (V, 3)`` T-pose in the body frame
+        (metres), coloured by ``uncertainty_m (V,)`` on the heatmap's scale, under ``title``;
+        None removes it. Needs the faces of a drawn view."""
+        with self._lock, self.server.atomic():
+            for node in self._combined:
+                node.remove()
+            self._combined = []
+            self.combined_shown = vertices is not None
+            if vertices is None or uncertainty_m is None or len(self.faces) == 0:
+                return
+            points = np.ascontiguousarray(vertices, dtype=np.float32)
+            self._combined = [
+                self.server.scene.add_mesh_simple(
+                    "/combined/base", points, self.faces, color=HEATMAP_BASE_COLOUR,
+                    cast_shadow=False, receive_shadow=False,
+                ),
+                self.server.scene.add_point_cloud(
+                    "/combined/points", points,
+                    uncertainty_colours(uncertainty_m, self.heatmap_max_cm), point_size=0.03,
+                    point_shape="circle", point_shading="flat",
+                ),
+                self.server.scene.add_label(
+                    "/combined_title", title, position=(COMBINED_OFFSET, 1.05, 0.0),
+                    font_screen_scale=1.0, anchor="bottom-center",
+                ),
+            ]  # fmt: skip
 
     # ------------------------------------------------------------------ bodies
     def show_view(self, view: PosteriorView, faces: np.ndarray | None = None) -> None:

@@ -4,7 +4,8 @@ One :class:`ExplorerState` is shared by every browser tab; all access goes throu
 two tabs editing at once never see half-applied changes. Two version counters tell the worker
 what is stale: ``prediction_version`` (photo or occluders changed: run the predictor again) and
 ``sampling_version`` (concentration, shape spread, sample count or seed changed: draw new samples
-from the current posterior).
+from the current posterior). The shapes of further photos of the same person (combined with the
+current photo's into one shape) are kept as plain numbers; a new photo starts a new person.
 
 Occluder boxes are ``(x0, y0, x1, y1)`` in original-photo pixels, pixel-edge coordinates (pixel
 column ``i`` spans ``[i, i + 1)``), exactly what :func:`hkpd.prediction.apply_occluders` takes.
@@ -43,6 +44,24 @@ LIMB_GROUPS: dict[str, tuple[str, ...]] = {
     "Right leg": ("right_hip", "right_knee", "right_ankle", "right_foot"),
 }
 """The 23 body joints grouped by limb, for the concentration folders."""
+
+MAX_SAME_PERSON_PHOTOS = 20
+"""Further photos of the same person kept at most (besides the current photo)."""
+
+
+@dataclass(frozen=True)
+class SamePersonShape:
+    """The shape Gaussian predicted for one more photo of the current person.
+
+    Attributes:
+        name: the photo's file name (for the panel).
+        mean: ``K`` mean shape coefficients.
+        std: ``K`` their standard deviations (> 0).
+    """
+
+    name: str
+    mean: tuple[float, ...]
+    std: tuple[float, ...]
 
 
 @dataclass(frozen=True)
@@ -98,6 +117,7 @@ class StateSnapshot:
     sampling_version: int
     evidence: bool = True
     person_box: tuple[float, float, float, float] | None = None
+    same_person: tuple[SamePersonShape, ...] = ()
 
     @property
     def active_boxes(self) -> list[tuple[float, float, float, float]]:
@@ -134,6 +154,7 @@ class ExplorerState:
     _joint_exponents: list[float] = field(default_factory=lambda: [0.0] * NUM_BODY_JOINTS)
     _global_exponent: float = 0.0
     _shape_std_exponent: float = 0.0
+    _same_person: list[SamePersonShape] = field(default_factory=list)
     _next_ident: int = 1
     _prediction_version: int = 0
     _sampling_version: int = 0
@@ -157,6 +178,7 @@ class ExplorerState:
                 sampling_version=self._sampling_version,
                 evidence=self.evidence,
                 person_box=self.person_box,
+                same_person=tuple(self._same_person),
             )
 
     def occluder(self, ident: int) -> Occluder:
@@ -168,13 +190,15 @@ class ExplorerState:
     def set_image(
         self, width: int, height: int, person_box: tuple[float, float, float, float] | None = None
     ) -> None:
-        """A new photo: its size, no occluders and no person box (they belong to the old
-        photo) unless ``person_box`` is given; concentration edits are kept."""
+        """A new photo: its size, no occluders, no person box and no further photos of the same
+        person (they belong to the old photo) unless ``person_box`` is given; concentration
+        edits are kept."""
         if width < 1 or height < 1:
             raise ValueError(f"image size must be positive, got {width}x{height}")
         with self._lock:
             self.image_size = (int(width), int(height))
             self._occluders.clear()
+            self._same_person.clear()
             self.person_box = None if person_box is None else clamp_box(person_box, width, height)
             self._prediction_version += 1
 
@@ -203,6 +227,42 @@ class ExplorerState:
         """True when no further occluder can be added."""
         with self._lock:
             return len(self._occluders) >= MAX_OCCLUDERS
+
+    # ------------------------------------------------------------------ same person
+    def add_same_person_shape(
+        self, name: str, mean: tuple[float, ...], std: tuple[float, ...]
+    ) -> bool:
+        """Keep one more photo's shape Gaussian for the current person; False when
+        :data:`MAX_SAME_PERSON_PHOTOS` are kept already.
+
+        Raises:
+            ValueError: mean and std of different lengths, non-finite values or stds <= 0.
+        """
+        mean = tuple(float(v) for v in mean)
+        std = tuple(float(v) for v in std)
+        if len(mean) != len(std) or not mean:
+            raise ValueError(f"shape mean and std need the same length >= 1, got {len(mean)} "
+                             f"and {len(std)}")  # fmt: skip
+        if not all(math.isfinite(v) for v in mean + std) or min(std) <= 0:
+            raise ValueError("shape means must be finite and stds finite and > 0")
+        with self._lock:
+            if len(self._same_person) >= MAX_SAME_PERSON_PHOTOS:
+                return False
+            if self._same_person and len(self._same_person[0].mean) != len(mean):
+                raise ValueError(
+                    f"this photo has {len(mean)} shape coefficients, the kept ones have "
+                    f"{len(self._same_person[0].mean)}"
+                )
+            self._same_person.append(SamePersonShape(str(name), mean, std))
+            return True
+
+    def clear_same_person(self) -> bool:
+        """Forget the further photos of the person; False if there were none."""
+        with self._lock:
+            if not self._same_person:
+                return False
+            self._same_person.clear()
+            return True
 
     # ------------------------------------------------------------------ occluders
     def add_occluder(self, box: tuple[float, float, float, float]) -> Occluder | None:
