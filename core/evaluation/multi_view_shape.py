@@ -20,6 +20,8 @@ It also reports how sure the combined shape claims to be: the mean combined std 
 coefficients, the mean per-vertex shape uncertainty of the T-pose (metres, from sampled
 shapes; on the first ``n`` views only, to keep it cheap) and the RMS of the coefficient errors
 in units of the combined std (about 1 when the stds are honest, above 1 when over-confident).
+For reference it scores the average body (all coefficients 0) too: a network that reads no shape
+from the images scores about that.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ MULTI_VIEW_SEED = 2025
 """Seed of the multi-view sets (another stream than the fixed test set's 2021)."""
 
 MULTI_VIEW_COLUMNS = [
+    "pve_t_sc_average_body",
     "pve_t_sc_single",
     "pve_t_sc_mean",
     "pve_t_sc_product",
@@ -50,6 +53,7 @@ MULTI_VIEW_COLUMNS = [
 ]
 
 MULTI_VIEW_LABELS = {
+    "pve_t_sc_average_body": "PVE-T-SC average body, betas 0 (mm)",
     "pve_t_sc_single": "PVE-T-SC single image (mm)",
     "pve_t_sc_mean": "PVE-T-SC mean of means (mm)",
     "pve_t_sc_product": "PVE-T-SC probabilistic (mm)",
@@ -146,6 +150,7 @@ def multi_view_shape_table(
         return float(pve_t_sc(predicted, target).mean()) * MILLIMETRES_PER_METRE
 
     single = sum(pve_mm(predictions.means[v]) for v in range(views)) / views
+    average_body = pve_mm(torch.zeros_like(predictions.true_betas))
     rows: dict[str, dict[str, float]] = {}
     for count in range(1, views + 1):
         scores: dict[str, list[float]] = {"mean": [], "product": [], "z": []}
@@ -168,6 +173,7 @@ def multi_view_shape_table(
             for b, mean, std in zip(chosen, first_mean, first_std, strict=False)
         ]
         rows[f"{count} photo{'s' if count > 1 else ''}"] = {
+            "pve_t_sc_average_body": average_body,
             "pve_t_sc_single": single,
             "pve_t_sc_mean": _average(scores["mean"]),
             "pve_t_sc_product": _average(scores["product"]),
