@@ -203,3 +203,32 @@ def test_eval_with_evidence_scores_both_posteriors(tmp_path, capsys) -> None:
     assert evidence[-1] == 1.0  # every fit succeeded ("conditioned" share)
     assert eval_main([*arguments, "--evidence", "--concentration-scale", "2"]) == 2
     assert "one of them" in capsys.readouterr().err
+
+
+def test_eval_scores_the_upright_reading_on_each_split(tmp_path) -> None:
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    torch.manual_seed(0)
+    checkpoint = save_checkpoint(
+        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    report = tmp_path / "report.md"
+    arguments = [str(checkpoint), "--count", "4", "--samples", "2", "--out", str(report)]
+    assert eval_main([*arguments, "--any-orientation", "--upright-reading"]) == 0
+    table = report.read_text().split("All synthetic metrics")[0]
+    names = [line.split("|")[1].strip() for line in table.splitlines() if line.startswith("| ")]
+    assert names[1:] == [
+        str(checkpoint),
+        f"{checkpoint} (upright reading)",
+        f"{checkpoint} (any orientation)",
+        f"{checkpoint} (any orientation) (upright reading)",
+    ]
+    values = {
+        line.split("|")[1].strip(): line.split("|")[2:-1]
+        for line in table.splitlines()
+        if line.startswith(f"| {checkpoint}")
+    }
+    # The rolled views are read differently, so at least one 3D error moves.
+    assert (
+        values[f"{checkpoint} (any orientation)"]
+        != values[f"{checkpoint} (any orientation) (upright reading)"]
+    )

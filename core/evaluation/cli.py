@@ -93,6 +93,13 @@ def build_parser() -> argparse.ArgumentParser:
         "view rolled uniformly, 30 %% seen steeply from above or below)",
     )
     parser.add_argument(
+        "--upright-reading",
+        action="store_true",
+        help="also evaluate the network reading people who lean more than 30 degrees from an "
+        "upright copy of its input (the predictor's network-only default) on every synthetic "
+        "split and on --coco",
+    )
+    parser.add_argument(
         "--detector-errors",
         action="store_true",
         help="with --coco: also measure BlazePose against the human keypoints (jitter, misses, "
@@ -146,17 +153,22 @@ def evaluate_synthetic(
     device,
     concentration_scale: float = 1.0,
     orientation=None,
+    upright_reading: bool = False,
 ):
     """Metrics of one checkpoint on the fixed synthetic test set (3D in mm, 2D in px at 256),
     optionally with its F scaled (:mod:`hkpd.evaluation.concentration_scaling`) or on the
     any-orientation split (``orientation``, e.g.
-    :data:`hkpd.synthesis.orientation.ANY_ORIENTATION`)."""
+    :data:`hkpd.synthesis.orientation.ANY_ORIENTATION`), optionally reading leaning people from
+    an upright copy (:class:`hkpd.prediction.upright_reading.UprightReader`)."""
     from hkpd.evaluation.synthetic import evaluate_batches
+    from hkpd.prediction.upright_reading import UprightReader
     from hkpd.synthesis.generator import iter_fixed_test_set
 
     network, generator = _network_and_test_generator(
         checkpoint, poses, device, orientation=orientation
     )
+    if upright_reading:
+        network = UprightReader(network)
     network = ConcentrationScaled(network, concentration_scale)
     batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
     size = generator.config.image_size
@@ -250,14 +262,21 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             for checkpoint in arguments.checkpoints
             for factor in arguments.concentration_scale
         }
-        if arguments.any_orientation:
-            from hkpd.synthesis.orientation import ANY_ORIENTATION
+        from hkpd.synthesis.orientation import ANY_ORIENTATION
 
-            for checkpoint in arguments.checkpoints:
-                rows[f"{checkpoint} (any orientation)"] = evaluate_synthetic(
-                    checkpoint, arguments.poses, arguments.count, arguments.samples, device,
-                    orientation=ANY_ORIENTATION,
-                )  # fmt: skip
+        splits = {"": None} | ({" (any orientation)": ANY_ORIENTATION}
+                               if arguments.any_orientation else {})  # fmt: skip
+        readings = [False, True] if arguments.upright_reading else [False]
+        for checkpoint in arguments.checkpoints:
+            for split, orientation in splits.items():
+                for upright in readings:
+                    if not split and not upright:
+                        continue  # the rows above
+                    name = f"{checkpoint}{split}" + (" (upright reading)" if upright else "")
+                    rows[name] = evaluate_synthetic(
+                        checkpoint, arguments.poses, arguments.count, arguments.samples,
+                        device, orientation=orientation, upright_reading=upright,
+                    )  # fmt: skip
         source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
         report.append(
             f"### Synthetic test set: {arguments.count} examples, {source}, seed "
@@ -300,6 +319,10 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             predictor = Predictor.from_pretrained(checkpoint, device=str(device))
             if not arguments.evidence:
                 rows[str(checkpoint)] = evaluate_photos(predictor, people)
+                if arguments.upright_reading:
+                    rows[f"{checkpoint} (upright reading)"] = evaluate_photos(
+                        predictor, people, upright=True
+                    )
             else:
                 from hkpd.evaluation.photo_occlusion import photo_occlusion_response
 

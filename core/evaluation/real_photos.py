@@ -94,7 +94,7 @@ def _errors(
 
 def evaluate_photos(
     predictor, people: list[AnnotatedPerson], num_samples: int = 10, seed: int = 0,
-    show_progress: bool = True, evidence: bool = False,
+    show_progress: bool = True, evidence: bool = False, upright: bool = False,
 ) -> dict[str, float]:  # fmt: skip
     """Mean 2D errors of the mode and of samples over ``people``.
 
@@ -103,6 +103,9 @@ def evaluate_photos(
         people: from :func:`load_coco_people`.
         num_samples: bodies sampled per person for the samples' error.
         evidence: score the keypoint-evidence posterior instead of the network's own.
+        upright: let the network read people who lean more than 30° from an upright copy of
+            the crop (``Predictor.predict``'s ``upright``; the predictor's default, off here so
+            that the plain network is scored unless asked).
 
     Returns:
         ``joint_error_2d_mode`` / ``joint_error_2d_samples`` (px at a 256 crop),
@@ -116,7 +119,9 @@ def evaluate_photos(
         margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
         search = person.bbox + np.array([-margin, -margin, margin, margin])
         try:
-            posterior = predictor.predict(person.image_path, bbox=search, evidence=evidence)
+            posterior = predictor.predict(
+                person.image_path, bbox=search, evidence=evidence, upright=upright or evidence
+            )
         except (NoPersonFoundError, ImageInputError, ValueError):
             failed += 1
             continue

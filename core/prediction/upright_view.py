@@ -25,25 +25,48 @@ from hkpd.prediction.crop import CropTransform
 
 SHOULDERS = (5, 6)
 HIPS = (11, 12)
+HEAD = (0, 1, 2, 3, 4)
+KNEES = (13, 14)
 
 
 def torso_tilt(keypoints: np.ndarray, observed: np.ndarray) -> float | None:
     """Angle (radians, clockwise on screen) of the hip-to-shoulder direction from straight up.
 
+    The direction is the mean of the same-side hip-to-shoulder vectors that are observed (a
+    person seen from the side often shows only one side). Without a whole side, it runs from
+    the observed hips (else knees) to the observed shoulders (else head keypoints).
+
     Args:
-        keypoints: ``(17, 2)`` pixels (v down).
-        observed: ``(17,)`` bool; both shoulders and both hips must be observed.
+        keypoints: ``(17, 2)`` COCO keypoints in pixels (v down).
+        observed: ``(17,)`` bool.
 
     Returns:
-        The angle in ``(-π, π]``, or None when a shoulder or hip is missing.
+        The angle in ``(-π, π]``, or None when neither the torso nor a stand-in for it is
+        observed.
     """
-    if not all(bool(observed[i]) for i in (*SHOULDERS, *HIPS)):
-        return None
     points = np.asarray(keypoints, dtype=np.float64)
-    direction = points[list(SHOULDERS)].mean(0) - points[list(HIPS)].mean(0)
+    seen = np.asarray(observed, dtype=bool)
+    sides = [(s, h) for s, h in zip(SHOULDERS, HIPS, strict=True) if seen[s] and seen[h]]
+    if sides:
+        direction = np.mean([points[s] - points[h] for s, h in sides], axis=0)
+    else:
+        upper = _observed_mean(points, seen, SHOULDERS) or _observed_mean(points, seen, HEAD)
+        lower = _observed_mean(points, seen, HIPS) or _observed_mean(points, seen, KNEES)
+        if upper is None or lower is None:
+            return None
+        direction = upper[0] - lower[0]
     if not np.isfinite(direction).all() or np.hypot(*direction) < 1e-6:
         return None
     return math.atan2(direction[0], -direction[1])
+
+
+def _observed_mean(
+    points: np.ndarray, seen: np.ndarray, indices: tuple[int, ...]
+) -> tuple[np.ndarray] | None:
+    """The mean of the observed ``indices`` (wrapped in a tuple, so that ``or`` can chain the
+    fallbacks), or None when none is observed."""
+    chosen = [i for i in indices if seen[i]]
+    return (points[chosen].mean(0),) if chosen else None
 
 
 @dataclass(frozen=True)
@@ -100,6 +123,17 @@ class UprightView:
             self._pixel_affine(),
             (self.size, self.size),
             flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+        )
+
+    def warp_edges(self, edge_bits: np.ndarray) -> np.ndarray:
+        """The upright copy of a ``(S, S)`` edge image in {0, 1} (nearest pixel, so it stays
+        binary; outside the crop: no edges)."""
+        return cv2.warpAffine(
+            edge_bits,
+            self._pixel_affine(),
+            (self.size, self.size),
+            flags=cv2.INTER_NEAREST,
             borderMode=cv2.BORDER_CONSTANT,
         )
 

@@ -44,3 +44,41 @@ def joint_heatmaps(
     if out is None:
         return rows.unsqueeze(-1) * columns.unsqueeze(-2)
     return torch.mul(rows.unsqueeze(-1), columns.unsqueeze(-2), out=out)
+
+
+def heatmap_peaks(heatmaps: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The joint positions that :func:`joint_heatmaps` drew, read back from the maps.
+
+    The brightest pixel of each map, refined to sub-pixel precision along each axis by the
+    parabola through the logarithms of it and its two neighbours (exact for a Gaussian whose
+    neighbours lie inside the crop).
+
+    Args:
+        heatmaps: ``(B, J, S, S)`` maps, peak 1 at each drawn joint, all zero for absent ones.
+
+    Returns:
+        ``(B, J, 2)`` float32 ``(u, v)`` crop pixels, and ``(B, J)`` bool: which maps hold a
+        joint (an absent joint's position is 0).
+    """
+    count, joints, size, _ = heatmaps.shape
+    flat = heatmaps.reshape(count, joints, -1)
+    peak, index = flat.max(-1)
+    present = peak > 0.5
+    rows, columns = index // size, index % size
+    floor = torch.finfo(torch.float32).tiny
+
+    def refined(along_rows: bool) -> torch.Tensor:
+        centre = rows if along_rows else columns
+        before, after = (centre - 1).clamp(0, size - 1), (centre + 1).clamp(0, size - 1)
+        at = (
+            (lambda r: r * size + columns) if along_rows else (lambda c: rows * size + c)
+        )  # flat index of the neighbour along the chosen axis
+        values = [flat.gather(-1, at(i)[..., None])[..., 0] for i in (before, centre, after)]
+        low, middle, high = (v.float().clamp_min(floor).log() for v in values)
+        curvature = low - 2 * middle + high
+        inside = (centre > 0) & (centre < size - 1) & (curvature < 0)
+        shift = torch.where(inside, 0.5 * (low - high) / curvature.where(inside, -1.0), 0.0)
+        return centre.float() + shift.clamp(-0.5, 0.5)
+
+    points = torch.stack([refined(False), refined(True)], -1)
+    return points * present[..., None], present

@@ -1,0 +1,117 @@
+"""Reading leaning people from an upright copy: heatmap peaks, the torso's lean, the reader."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from hkpd.network import DistributionNetwork, NetworkConfig, NetworkOutput
+from hkpd.prediction.upright_reading import UprightReader
+from hkpd.prediction.upright_view import torso_tilt
+from hkpd.proxy import assemble_proxy
+from hkpd.proxy.heatmaps import heatmap_peaks, joint_heatmaps
+
+SIZE = 64
+
+STANDING = np.array(
+    [[32, 10], [31, 9], [33, 9], [30, 10], [34, 10],  # head
+     [27, 16], [37, 16], [25, 24], [39, 24], [24, 31], [40, 31],  # arms
+     [29, 32], [35, 32], [29, 43], [35, 43], [29, 54], [35, 54]],  # legs
+    dtype=np.float64,
+)  # fmt: skip
+"""A person standing upright in a 64-pixel crop, COCO order, pixels."""
+
+
+def turned(points: np.ndarray, degrees: float) -> np.ndarray:
+    """``points`` turned clockwise on screen (v down) about the crop centre."""
+    angle = math.radians(degrees)
+    rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+    centre = (SIZE - 1) / 2
+    return (points - centre) @ rotation.T + centre
+
+
+def test_heatmap_peaks_read_back_the_drawn_points_to_sub_pixel_precision() -> None:
+    generator = torch.Generator().manual_seed(3)
+    points = torch.rand(4, 17, 2, generator=generator) * (SIZE - 8) + 4
+    present = torch.rand(4, 17, generator=generator) > 0.3
+    found, found_present = heatmap_peaks(joint_heatmaps(points, present, SIZE))
+    assert torch.equal(found_present, present)
+    assert (found[present] - points[present]).norm(dim=-1).max() < 0.02
+    assert (found[~present] == 0).all()
+
+
+def test_torso_tilt_uses_one_side_or_stand_ins_when_the_torso_is_half_seen() -> None:
+    lying = turned(STANDING, 90.0)
+    everything = np.ones(17, dtype=bool)
+    assert math.degrees(torso_tilt(lying, everything)) == pytest.approx(90.0, abs=1e-6)
+    left_side = np.zeros(17, dtype=bool)
+    left_side[[5, 11]] = True  # the left shoulder and hip only (seen from the side)
+    standing_left = math.degrees(torso_tilt(STANDING, left_side))  # that side slants a little
+    assert math.degrees(torso_tilt(lying, left_side)) == pytest.approx(90.0 + standing_left)
+    head_and_knees = np.zeros(17, dtype=bool)
+    head_and_knees[[0, 13, 14]] = True
+    assert abs(math.degrees(torso_tilt(lying, head_and_knees)) - 90.0) < 10.0
+    arms_only = np.zeros(17, dtype=bool)
+    arms_only[[7, 8, 9, 10]] = True
+    assert torso_tilt(lying, arms_only) is None
+
+
+class RecordingNetwork(torch.nn.Module):
+    """Answers the identity rotation and a fixed camera; keeps the proxies it was shown."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.config = NetworkConfig(backbone_base_width=8, image_size=SIZE)
+        self.seen: list[torch.Tensor] = []
+
+    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+        self.seen.append(proxy.clone())
+        count = proxy.shape[0]
+        return NetworkOutput(
+            F=torch.eye(3).expand(count, 23, 3, 3) * 10.0,
+            shape_mean=torch.zeros(count, 10),
+            shape_std=torch.ones(count, 10),
+            global_orient=torch.eye(3).expand(count, 3, 3).clone(),
+            camera=torch.tensor([1.0, 0.0, 0.0]).expand(count, 3).clone(),
+        )
+
+
+def proxies_of(*people: np.ndarray) -> torch.Tensor:
+    points = torch.as_tensor(np.stack(people), dtype=torch.float32)
+    edges = torch.zeros(len(people), SIZE, SIZE, dtype=torch.uint8)
+    edges[:, 30:34, 20:44] = 1  # a bar, to see the edge channel move with the copy
+    return assemble_proxy(edges, points, torch.ones(len(people), 17, dtype=torch.bool))
+
+
+def test_the_reader_turns_leaning_people_upright_and_maps_the_answer_back() -> None:
+    network = RecordingNetwork()
+    reader = UprightReader(network)
+    output = reader(proxies_of(STANDING, turned(STANDING, 100.0)))
+    shown = network.seen[-1]
+    assert math.isnan(reader.last_tilts_degrees[0])
+    assert reader.last_tilts_degrees[1] == pytest.approx(100.0, abs=0.5)
+    torch.testing.assert_close(shown[0], proxies_of(STANDING)[0])  # upright: untouched
+    keypoints, present = heatmap_peaks(shown[1:, 1:])
+    tilt = torso_tilt(keypoints[0].numpy(), present[0].numpy())
+    assert abs(math.degrees(tilt)) < 1.0  # the network saw the lying person upright
+    assert shown[1, 0].sum() > 0 and not torch.equal(shown[1, 0], shown[0, 0])  # edges turned
+    torch.testing.assert_close(output.global_orient[0], torch.eye(3))
+    rotation = output.global_orient[1].double()
+    about_axis = math.degrees(math.atan2(float(rotation[1, 0]), float(rotation[0, 0])))
+    assert about_axis == pytest.approx(reader.last_tilts_degrees[1], abs=1e-3)
+    torch.testing.assert_close(output.F, network(shown).F)  # relative rotations stay
+
+
+def test_the_reader_is_the_network_itself_for_upright_people() -> None:
+    torch.manual_seed(0)
+    network = DistributionNetwork(NetworkConfig(backbone_base_width=8, image_size=SIZE)).eval()
+    proxy = proxies_of(STANDING, turned(STANDING, 15.0))
+    with torch.no_grad():
+        direct, read = network(proxy), UprightReader(network)(proxy)
+    for name in ("F", "shape_mean", "global_orient", "camera"):
+        torch.testing.assert_close(getattr(read, name), getattr(direct, name), rtol=0, atol=0)
+    with pytest.raises(ValueError, match="threshold_degrees"):
+        UprightReader(network, threshold_degrees=-1.0)
