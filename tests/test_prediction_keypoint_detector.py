@@ -1,4 +1,4 @@
-"""KeypointDetector: COCO index mapping, coordinate maps (with a stand-in graph), errors, threads,
+"""KeypointDetector: COCO index mapping, coordinate maps (with a stand-in runner), errors, threads,
 and real BlazePose runs (on demo photos when /work/shared/data is present)."""
 
 from __future__ import annotations
@@ -7,7 +7,6 @@ import json
 import threading
 import time
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -20,6 +19,8 @@ from hkpd.prediction import (
     NoPersonFoundError,
     load_image,
 )
+from hkpd.prediction.blazepose import PersonCandidate, PoseLandmarks
+from hkpd.prediction.blazepose_warp import Region
 
 DEMO_PHOTOS = Path("/work/shared/data/demo_photos")
 COCO_MINI = Path("/work/shared/data/coco_mini")
@@ -29,15 +30,15 @@ needs_demo_photos = pytest.mark.skipif(
 
 
 def test_coco_indices_name_the_same_landmarks_in_mediapipe() -> None:
-    from mediapipe.python.solutions.pose import PoseLandmark
+    pose = pytest.importorskip("mediapipe.python.solutions.pose")
 
-    names = [PoseLandmark(index).name.lower() for index in COCO_FROM_BLAZEPOSE]
+    names = [pose.PoseLandmark(index).name.lower() for index in COCO_FROM_BLAZEPOSE]
     assert names == list(COCO_KEYPOINT_NAMES)
 
 
-class MarkerFindingGraph:
-    """Stands in for BlazePose: 'detects' every landmark at the centroid of the white pixels of
-    the image it is given, and records how many calls overlap in time."""
+class MarkerFindingRunner:
+    """Stands in for BlazePose: 'finds' one person at the centroid of the white pixels of the
+    image it is given, puts every landmark there, and records how many calls overlap in time."""
 
     def __init__(self) -> None:
         self.calls = 0
@@ -45,29 +46,29 @@ class MarkerFindingGraph:
         self.max_active = 0
         self.shapes: list[tuple[int, ...]] = []
 
-    def process(self, pixels: np.ndarray) -> SimpleNamespace:
+    def find_people(self, pixels: np.ndarray) -> list[PersonCandidate]:
         self.active += 1
         self.max_active = max(self.max_active, self.active)
         time.sleep(0.002)
         self.calls += 1
         self.shapes.append(pixels.shape)
         ys, xs = np.nonzero(pixels[:, :, 0] > 127)
-        height, width = pixels.shape[:2]
-        x, y = (xs.mean() + 0.5) / width, (ys.mean() + 0.5) / height  # MediaPipe: edge = 0
-        landmark = SimpleNamespace(x=x, y=y, visibility=0.9)
         self.active -= 1
-        return SimpleNamespace(
-            pose_landmarks=SimpleNamespace(landmark=[landmark] * 33), segmentation_mask=None
-        )
+        if xs.size == 0:
+            return []
+        centre = np.array([xs.mean(), ys.mean()])
+        region = Region(centre, 10.0, 0.0)
+        return [
+            PersonCandidate(0.8, np.r_[centre - 5, centre + 5], np.tile(centre, (4, 1)), region)
+        ]
 
-    def close(self) -> None:
-        pass
+    def landmarks(self, pixels: np.ndarray, region: Region, segmentation: bool = False):
+        points = np.tile(region.centre, (33, 1))
+        return PoseLandmarks(points, np.full(33, 0.9), 0.99, region, None)
 
 
-def detector_with(graph: MarkerFindingGraph) -> KeypointDetector:
-    detector = KeypointDetector()
-    detector._pose = graph
-    return detector
+def detector_with(runner: MarkerFindingRunner) -> KeypointDetector:
+    return KeypointDetector(runner=runner)
 
 
 def marker_photo() -> np.ndarray:
@@ -80,16 +81,16 @@ def marker_photo() -> np.ndarray:
 @pytest.mark.parametrize("max_side", [800, 200])
 @pytest.mark.parametrize("bbox", [None, (500.0, 50.0, 700.0, 300.0)])
 def test_keypoints_come_back_in_original_pixels(max_side: int, bbox: tuple | None) -> None:
-    graph = MarkerFindingGraph()
+    runner = MarkerFindingRunner()
     loaded = load_image(marker_photo(), max_side=max_side)
-    detection = detector_with(graph).detect(loaded, bbox=bbox)
+    detection = detector_with(runner).detect(loaded, bbox=bbox)
     np.testing.assert_allclose(detection.keypoints, np.tile([601.5, 101.5], (17, 1)), atol=1e-9)
     assert detection.image_size == (800, 400)
     np.testing.assert_allclose(detection.confidences, 0.9)
     np.testing.assert_allclose(detection.person_box, [601.5, 101.5, 601.5, 101.5], atol=1e-9)
     if bbox is None:
         assert detection.search_box is None
-        assert graph.shapes[0][:2] == loaded.pixels.shape[:2]
+        assert runner.shapes[0][:2] == loaded.pixels.shape[:2]
     else:
         np.testing.assert_array_equal(detection.search_box, bbox)
         # The search region is the bbox widened by 10 % per side, (480, 25)-(720, 325) in
@@ -97,12 +98,12 @@ def test_keypoints_come_back_in_original_pixels(max_side: int, bbox: tuple | Non
         scale = max_side / 800
         rows = np.ceil(325 * scale) - np.floor(25 * scale)
         cols = np.ceil(720 * scale) - np.floor(480 * scale)
-        assert graph.shapes[0][:2] == (rows, cols)
+        assert runner.shapes[0][:2] == (rows, cols)
     assert detection.seconds > 0
 
 
 def test_bbox_validation() -> None:
-    detector = detector_with(MarkerFindingGraph())
+    detector = detector_with(MarkerFindingRunner())
     with pytest.raises(ValueError, match="four finite numbers"):
         detector.detect(marker_photo(), bbox=(1, 2, 3))
     with pytest.raises(ValueError, match="x1 > x0"):
@@ -114,8 +115,8 @@ def test_bbox_validation() -> None:
 
 
 def test_calls_from_several_threads_are_serialised() -> None:
-    graph = MarkerFindingGraph()
-    detector = detector_with(graph)
+    runner = MarkerFindingRunner()
+    detector = detector_with(runner)
     photo = marker_photo()
     errors: list[BaseException] = []
 
@@ -132,11 +133,11 @@ def test_calls_from_several_threads_are_serialised() -> None:
     for thread in threads:
         thread.join()
     assert not errors
-    assert graph.calls == 20 and graph.max_active == 1
+    assert runner.calls == 20 and runner.max_active == 1
 
 
 def test_closed_detector_refuses_work() -> None:
-    with detector_with(MarkerFindingGraph()) as detector:
+    with detector_with(MarkerFindingRunner()) as detector:
         detector.detect(marker_photo())
     with pytest.raises(RuntimeError, match="closed"):
         detector.detect(marker_photo())
@@ -195,3 +196,71 @@ def test_detection_agrees_with_coco_annotation_and_across_bbox_and_downscale() -
     )
     inside = crop.image_to_crop(full.keypoints)
     assert ((inside > 0) & (inside < 255)).all()
+
+
+class NobodyRunner(MarkerFindingRunner):
+    """Finds nobody; its landmark model 'sees' a person wherever it is pointed."""
+
+    def find_people(self, pixels: np.ndarray) -> list[PersonCandidate]:
+        self.shapes.append(pixels.shape)
+        self.regions: list[Region] = []
+        return []
+
+    def landmarks(self, pixels: np.ndarray, region: Region, segmentation: bool = False):
+        self.regions.append(region)
+        return super().landmarks(pixels, region, segmentation)
+
+
+def test_a_box_the_detector_finds_nobody_in_is_still_read_by_the_landmark_model() -> None:
+    runner = NobodyRunner()
+    detector = KeypointDetector(runner=runner)
+    with pytest.raises(NoPersonFoundError):
+        detector.detect(marker_photo())
+    found = detector.detect(marker_photo(), bbox=(500.0, 50.0, 700.0, 250.0))
+    (region,) = runner.regions
+    assert region.angle == 0.0
+    # Centred on the box (its padded search region is (480, 30)-(720, 270) in pixel edges),
+    # 1.25 x its longer side.
+    np.testing.assert_allclose(found.keypoints, np.tile([599.5, 149.5], (17, 1)), atol=1e-9)
+    assert region.size == pytest.approx(250.0)
+    assert found.detector_score is None
+
+
+def test_detect_all_returns_one_detection_per_person() -> None:
+    class TwoPeople(MarkerFindingRunner):
+        def find_people(self, pixels):
+            left = Region(np.array([100.0, 100.0]), 50.0, 0.0)
+            right = Region(np.array([600.0, 300.0]), 50.0, 0.0)
+            box = np.zeros(4)
+            return [
+                PersonCandidate(0.9, box, np.zeros((4, 2)), left),
+                PersonCandidate(0.7, box, np.zeros((4, 2)), right),
+            ]
+
+    found = KeypointDetector(runner=TwoPeople()).detect_all(marker_photo())
+    assert [d.detector_score for d in found] == [0.9, 0.7]
+    np.testing.assert_allclose(found[0].keypoints[0], [100.0, 100.0])
+    np.testing.assert_allclose(found[1].keypoints[0], [600.0, 300.0])
+    assert KeypointDetector(runner=NobodyRunner()).detect_all(marker_photo()) == []
+
+
+SHIPPED_PHOTO = Path(__file__).parents[1] / "assets" / "photos" / "warrior_lunge.jpg"
+
+
+def test_real_blazepose_on_the_shipped_photo() -> None:
+    with KeypointDetector(segmentation=True) as detector:
+        found = detector.detect(SHIPPED_PHOTO)
+        everyone = detector.detect_all(SHIPPED_PHOTO)
+        boxed = detector.detect(SHIPPED_PHOTO, bbox=found.person_box)
+    k = dict(zip(COCO_KEYPOINT_NAMES, found.keypoints, strict=True))
+    assert found.detector_score > 0.5 and found.presence > 0.5
+    assert k["nose"][1] < k["left_hip"][1] < k["left_ankle"][1]
+    assert len(everyone) >= 1
+    np.testing.assert_allclose(everyone[0].keypoints, found.keypoints, atol=1e-6)
+    size = np.ptp(found.keypoints, axis=0).max()
+    assert np.median(np.linalg.norm(boxed.keypoints - found.keypoints, axis=1)) < 0.03 * size
+    x0, y0, x1, y1 = found.mask_box
+    assert (
+        x0 <= np.median(found.keypoints[:, 0]) <= x1
+        and y0 <= np.median(found.keypoints[:, 1]) <= y1
+    )

@@ -1,18 +1,18 @@
-"""COCO-17 2D keypoints of one person in a photo, from MediaPipe's BlazePose.
+"""COCO-17 2D keypoints of the people in a photo, from BlazePose.
 
-:class:`KeypointDetector` wraps the legacy ``mediapipe.solutions.pose.Pose`` (BlazePose full
-model, ``model_complexity=1``, whose weights ship inside the mediapipe wheel: nothing is
-downloaded). BlazePose finds 33 landmarks of ONE person; the 17 COCO keypoints are a subset
-(:data:`COCO_FROM_BLAZEPOSE`), and each keypoint's confidence is BlazePose's landmark
-``visibility`` in [0, 1].
+:class:`KeypointDetector` runs BlazePose's own two models with hkpd's pipeline
+(:mod:`hkpd.prediction.blazepose`; the "full" landmark model, whose weights ship in
+``hkpd.assets/blazepose``: nothing is downloaded). BlazePose finds 33 landmarks per person; the
+17 COCO keypoints are a subset (:data:`COCO_FROM_BLAZEPOSE`), and each keypoint's confidence is
+BlazePose's landmark visibility in [0, 1].
 
-With several people in the photo, BlazePose takes one of them (usually the largest, most
-central); pass ``bbox`` to :meth:`KeypointDetector.detect` to restrict the search to one region.
-:attr:`KeypointDetection.person_box` says which person was taken.
+- :meth:`KeypointDetector.detect`: one person, the detector's best; ``bbox`` restricts the
+  search to one region (widened by :data:`SEARCH_BOX_PADDING`). When the detector finds nobody
+  inside the box, the landmark model still looks at the box itself, taken as upright.
+- :meth:`KeypointDetector.detect_all`: one detection per person the detector finds.
 
 Coordinates are ``(u, v)`` pixels of the ORIGINAL photo (see :mod:`hkpd.prediction.image_input`),
-pixel centres at integer coordinates. MediaPipe's normalised landmark ``x`` spans the image from
-its left edge (0) to its right edge (1), so ``u = x * width - 0.5``.
+pixel centres at integer coordinates.
 """
 
 from __future__ import annotations
@@ -21,25 +21,43 @@ import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Protocol
 
 import numpy as np
 
+from hkpd.prediction.blazepose import (
+    POSE_PRESENCE_THRESHOLD,
+    REGION_SCALE,
+    BlazePose,
+    PersonCandidate,
+    PoseLandmarks,
+)
+from hkpd.prediction.blazepose_warp import Region
+from hkpd.prediction.detection_boxes import (
+    MIN_SEARCH_REGION,
+    SEARCH_BOX_PADDING,
+    clipped_box,
+    no_person_message,
+    search_region,
+    validated_box,
+)
 from hkpd.prediction.image_input import LoadedImage, load_image
+
+__all__ = [
+    "COCO_FROM_BLAZEPOSE",
+    "CONFIDENT_VISIBILITY",
+    "MIN_CONFIDENT_KEYPOINTS",
+    "MIN_SEARCH_REGION",
+    "SEARCH_BOX_PADDING",
+    "KeypointDetection",
+    "KeypointDetector",
+    "NoPersonFoundError",
+    "PoseRunner",
+]
 
 COCO_FROM_BLAZEPOSE = (0, 2, 5, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24, 25, 26, 27, 28)
 """BlazePose landmark index of each COCO-17 keypoint, in COCO order (nose, left eye, right eye,
 left ear, right ear, left/right shoulder, elbow, wrist, hip, knee, ankle)."""
-
-BLAZEPOSE_MODEL_COMPLEXITY = 1
-"""The BlazePose "full" model: the only one in the mediapipe wheel (0 and 2 need a download)."""
-
-SEARCH_BOX_PADDING = 0.1
-"""A ``bbox`` search region is widened by this fraction of its width/height on every side, so
-that a tight box does not cut off the hands or feet the detector needs to see."""
-
-MIN_SEARCH_REGION = 16
-"""Smallest search region side, in working-image pixels, that is worth running the detector on."""
 
 MIN_CONFIDENT_KEYPOINTS = 4
 """A detection with fewer COCO keypoints of confidence >= :data:`CONFIDENT_VISIBILITY` counts as
@@ -47,9 +65,6 @@ no person (BlazePose occasionally hallucinates a pose on clutter)."""
 
 CONFIDENT_VISIBILITY = 0.5
 """Visibility at which a keypoint counts towards :data:`MIN_CONFIDENT_KEYPOINTS`."""
-
-MASK_THRESHOLD = 0.5
-"""Segmentation-mask value above which a pixel belongs to the person (for ``mask_box``)."""
 
 
 class NoPersonFoundError(RuntimeError):
@@ -71,7 +86,10 @@ class KeypointDetection:
             (or when the mask is empty).
         search_box: the ``bbox`` the search was restricted to (original pixels), or None.
         image_size: ``(width, height)`` of the original photo.
-        seconds: wall time of the detector call (lock wait excluded), seconds.
+        seconds: wall time of the models and decoding (lock wait excluded), seconds.
+        detector_score: the person detector's score in [0, 1]; None when the landmark model
+            looked at the user's box because the detector found nobody inside it.
+        presence: the landmark model's pose-presence score in [0, 1] (None if unknown).
     """
 
     keypoints: np.ndarray
@@ -81,24 +99,42 @@ class KeypointDetection:
     search_box: np.ndarray | None
     image_size: tuple[int, int]
     seconds: float
+    detector_score: float | None = None
+    presence: float | None = None
+
+
+class PoseRunner(Protocol):
+    """What :class:`KeypointDetector` needs from a pose model (:class:`BlazePose`, or a stand-in
+    in tests). Coordinates are pixels of the array passed in."""
+
+    def find_people(self, pixels: np.ndarray) -> list[PersonCandidate]: ...
+
+    def landmarks(
+        self, pixels: np.ndarray, region: Region, segmentation: bool = False
+    ) -> PoseLandmarks: ...
 
 
 class KeypointDetector:
-    """BlazePose keypoint detector; one lazily created ``Pose`` graph reused across calls.
+    """BlazePose keypoint detector; the models are loaded on first use and reused.
 
-    Thread-safe: calls from several threads are serialised by a lock (the graph is stateful).
-    Close it with :meth:`close` or use it as a context manager.
+    Thread-safe: calls from several threads are serialised by a lock (the interpreters hold
+    state). Close it with :meth:`close` or use it as a context manager.
 
     Args:
-        segmentation: also run BlazePose's person segmentation and report ``mask_box``
-            (slower; see ``docs/prediction.md``).
+        segmentation: also run BlazePose's person segmentation and report ``mask_box``.
         min_detection_confidence: BlazePose's person-detector threshold.
+        runner: the pose model (default: :class:`BlazePose` with the shipped models).
     """
 
-    def __init__(self, segmentation: bool = False, min_detection_confidence: float = 0.5) -> None:
+    def __init__(
+        self,
+        segmentation: bool = False,
+        min_detection_confidence: float = 0.5,
+        runner: PoseRunner | None = None,
+    ) -> None:
         self.segmentation = segmentation
         self.min_detection_confidence = min_detection_confidence
-        self._pose: Any = None
+        self._runner = runner
         self._lock = threading.Lock()
         self._closed = False
 
@@ -109,34 +145,25 @@ class KeypointDetector:
         self.close()
 
     def close(self) -> None:
-        """Release the MediaPipe graph. A later :meth:`detect` raises."""
+        """Release the models. A later :meth:`detect` raises."""
         with self._lock:
-            if self._pose is not None:
-                self._pose.close()
-                self._pose = None
+            self._runner = None
             self._closed = True
 
-    def _graph(self) -> Any:
-        """The ``Pose`` graph, created on first use (call with the lock held)."""
+    def _pose_runner(self) -> PoseRunner:
+        """The runner, created on first use (call with the lock held)."""
         if self._closed:
             raise RuntimeError("this KeypointDetector has been closed; create a new one")
-        if self._pose is None:
-            from mediapipe.python.solutions import pose as mp_pose
-
-            self._pose = mp_pose.Pose(
-                static_image_mode=True,
-                model_complexity=BLAZEPOSE_MODEL_COMPLEXITY,
-                enable_segmentation=self.segmentation,
-                min_detection_confidence=self.min_detection_confidence,
-            )
-        return self._pose
+        if self._runner is None:
+            self._runner = BlazePose(self.min_detection_confidence)
+        return self._runner
 
     def detect(
         self,
         image: LoadedImage | np.ndarray | str,
         bbox: Sequence[float] | np.ndarray | None = None,
     ) -> KeypointDetection:
-        """Detect one person's COCO-17 keypoints.
+        """Detect one person's COCO-17 keypoints: the detector's best in the photo or ``bbox``.
 
         Args:
             image: a :class:`LoadedImage` (coordinates are mapped back to its original photo),
@@ -156,106 +183,119 @@ class KeypointDetector:
         region = (0, 0, *loaded.size)
         search_box = None
         if bbox is not None:
-            search_box = _validated_box(bbox, loaded.original_size)
-            region = _search_region(loaded, search_box)
+            search_box = validated_box(bbox, loaded.original_size)
+            region = search_region(loaded, search_box)
         x0, y0, x1, y1 = region
         pixels = np.ascontiguousarray(loaded.pixels[y0:y1, x0:x1])
 
         with self._lock:
-            graph = self._graph()
+            runner = self._pose_runner()
             start = time.perf_counter()
-            result = graph.process(pixels)
+            people = runner.find_people(pixels)
+            score: float | None = people[0].score if people else None
+            if people:
+                look_at = people[0].region
+            elif search_box is not None:
+                look_at = _box_region(x1 - x0, y1 - y0)
+            else:
+                raise NoPersonFoundError(no_person_message(loaded, search_box))
+            found = runner.landmarks(pixels, look_at, self.segmentation)
             seconds = time.perf_counter() - start
-
-        if result.pose_landmarks is None:
-            raise NoPersonFoundError(_no_person_message(loaded, search_box))
-        landmarks = np.array(
-            [(lm.x, lm.y, lm.visibility) for lm in result.pose_landmarks.landmark], np.float64
-        )
-        region_size = np.array([x1 - x0, y1 - y0], np.float64)
-        working = landmarks[:, :2] * region_size - 0.5 + np.array([x0, y0], np.float64)
-        original = loaded.to_original(working)
-        confidences = np.clip(landmarks[list(COCO_FROM_BLAZEPOSE), 2], 0.0, 1.0)
-        if int((confidences >= CONFIDENT_VISIBILITY).sum()) < MIN_CONFIDENT_KEYPOINTS:
+        detection = _to_detection(found, loaded, (x0, y0), search_box, seconds, score)
+        if detection is None:
             raise NoPersonFoundError(
-                _no_person_message(loaded, search_box)
+                no_person_message(loaded, search_box)
                 + f" (a pose was found but fewer than {MIN_CONFIDENT_KEYPOINTS} keypoints were "
                 "visible with confidence)"
             )
-        mask_box = None
-        if result.segmentation_mask is not None:
-            mask_box = _mask_box(result.segmentation_mask, loaded, (x0, y0))
-        return KeypointDetection(
-            keypoints=original[list(COCO_FROM_BLAZEPOSE)],
-            confidences=confidences,
-            person_box=_clipped_box(original, loaded.original_size),
-            mask_box=mask_box,
-            search_box=search_box,
-            image_size=loaded.original_size,
-            seconds=seconds,
-        )
+        return detection
+
+    def detect_all(self, image: LoadedImage | np.ndarray | str) -> list[KeypointDetection]:
+        """One detection per person the detector finds in the whole photo, best score first.
+
+        People whose landmarks fail the presence or confidence checks are left out; the list is
+        empty when nobody is found (no exception). ``seconds`` of each is the time of all.
+
+        Raises:
+            ImageInputError: ``image`` could not be loaded.
+        """
+        loaded = load_image(image)
+        with self._lock:
+            runner = self._pose_runner()
+            start = time.perf_counter()
+            people = runner.find_people(loaded.pixels)
+            found = [runner.landmarks(loaded.pixels, p.region, self.segmentation) for p in people]
+            seconds = time.perf_counter() - start
+        detections = [
+            _to_detection(landmarks, loaded, (0, 0), None, seconds, person.score)
+            for landmarks, person in zip(found, people, strict=True)
+        ]
+        return [d for d in detections if d is not None]
+
+    def landmarks33(
+        self,
+        image: LoadedImage | np.ndarray | str,
+        bbox: Sequence[float] | np.ndarray | None = None,
+    ) -> np.ndarray | None:
+        """All 33 BlazePose landmarks of the person :meth:`detect` would take (for comparisons).
+
+        Returns:
+            ``(33, 3)`` float64 ``(u, v, visibility)`` in original-photo pixels, or None when no
+            pose is present (the confidence check of :meth:`detect` is not applied).
+        """
+        loaded = load_image(image)
+        x0, y0, x1, y1 = 0, 0, *loaded.size
+        if bbox is not None:
+            x0, y0, x1, y1 = search_region(loaded, validated_box(bbox, loaded.original_size))
+        pixels = np.ascontiguousarray(loaded.pixels[y0:y1, x0:x1])
+        with self._lock:
+            runner = self._pose_runner()
+            people = runner.find_people(pixels)
+            if not people:
+                return None
+            found = runner.landmarks(pixels, people[0].region)
+        if found.presence < POSE_PRESENCE_THRESHOLD:
+            return None
+        points = loaded.to_original(found.points + np.array([x0, y0], np.float64))
+        return np.concatenate([points, found.visibility[:, None]], axis=1)
 
 
-def _validated_box(bbox: Sequence[float] | np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """``(4,)`` float64 box after checking shape, order and overlap with the photo."""
-    box = np.asarray(bbox, dtype=np.float64)
-    if box.shape != (4,) or not np.isfinite(box).all():
-        raise ValueError(f"bbox must be four finite numbers (x0, y0, x1, y1), got {bbox!r}")
-    x0, y0, x1, y1 = box
-    if x1 <= x0 or y1 <= y0:
-        raise ValueError(f"bbox must have x1 > x0 and y1 > y0 (x0, y0, x1, y1), got {bbox!r}")
-    width, height = image_size
-    if x1 <= 0 or y1 <= 0 or x0 >= width or y0 >= height:
-        raise ValueError(
-            f"bbox {tuple(box)} lies outside the {width}x{height} photo; give it in pixels of "
-            "the original photo as displayed (x0, y0, x1, y1)"
-        )
-    return box
+def _box_region(width: int, height: int) -> Region:
+    """The upright landmark region for a search region of ``width × height`` pixels that the
+    detector found nobody in: centred on it, side :data:`REGION_SCALE` × its longer side."""
+    centre = np.array([width / 2 - 0.5, height / 2 - 0.5])
+    return Region(centre, REGION_SCALE * max(width, height) / (1 + 2 * SEARCH_BOX_PADDING), 0.0)
 
 
-def _search_region(loaded: LoadedImage, box: np.ndarray) -> tuple[int, int, int, int]:
-    """Integer working-image slice bounds of the padded, clipped search box."""
-    pad = SEARCH_BOX_PADDING * np.array([box[2] - box[0], box[3] - box[1]])
-    corners = np.array([box[:2] - pad, box[2:] + pad])
-    # Box corners are pixel edges; map them as edges (centre coordinates + 0.5).
-    edges = loaded.from_original(corners - 0.5) + 0.5
-    width, height = loaded.size
-    x0, y0 = np.clip(np.floor(edges[0]), 0, [width, height]).astype(int)
-    x1, y1 = np.clip(np.ceil(edges[1]), 0, [width, height]).astype(int)
-    if min(x1 - x0, y1 - y0) < MIN_SEARCH_REGION:
-        raise ValueError(
-            f"bbox {tuple(box)} covers only {x1 - x0}x{y1 - y0} pixels of the photo; draw a "
-            "box around the whole person"
-        )
-    return int(x0), int(y0), int(x1), int(y1)
-
-
-def _clipped_box(points: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """Bounding box ``(x0, y0, x1, y1)`` of ``(N, 2)`` points, clipped to the photo's pixels."""
-    width, height = image_size
-    low = np.clip(points.min(0), -0.5, [width - 0.5, height - 0.5])
-    high = np.clip(points.max(0), -0.5, [width - 0.5, height - 0.5])
-    return np.concatenate([low, high])
-
-
-def _mask_box(mask: np.ndarray, loaded: LoadedImage, offset: tuple[int, int]) -> np.ndarray | None:
-    """Box of the segmentation mask's person pixels (centres), in original-photo pixels."""
-    rows = np.flatnonzero((mask > MASK_THRESHOLD).any(1))
-    cols = np.flatnonzero((mask > MASK_THRESHOLD).any(0))
-    if rows.size == 0:
+def _to_detection(
+    found: PoseLandmarks,
+    loaded: LoadedImage,
+    offset: tuple[int, int],
+    search_box: np.ndarray | None,
+    seconds: float,
+    score: float | None,
+) -> KeypointDetection | None:
+    """Landmarks of a working-image region -> a detection in original pixels; None when the
+    pose is absent or too few COCO keypoints are confident."""
+    if found.presence < POSE_PRESENCE_THRESHOLD:
         return None
-    corners = np.array([[cols[0], rows[0]], [cols[-1], rows[-1]]], np.float64) + offset
-    return loaded.to_original(corners).reshape(4)
-
-
-def _no_person_message(loaded: LoadedImage, search_box: np.ndarray | None) -> str:
-    where = "in the photo" if search_box is None else f"inside bbox {tuple(search_box)}"
-    hint = (
-        "pass --bbox x0,y0,x1,y1 around the person (several people, or a small person)"
-        if search_box is None
-        else "check the bbox covers the whole person, in pixels of the original photo"
-    )
-    return (
-        f"{loaded.source}: no person found {where}; {hint}, or use a photo where the person is "
-        "large, well lit and mostly in the frame"
+    shift = np.array(offset, np.float64)
+    original = loaded.to_original(found.points + shift)
+    confidences = np.clip(found.visibility[list(COCO_FROM_BLAZEPOSE)], 0.0, 1.0)
+    if int((confidences >= CONFIDENT_VISIBILITY).sum()) < MIN_CONFIDENT_KEYPOINTS:
+        return None
+    mask_box = None
+    if found.mask_box is not None:
+        corners = loaded.to_original(found.mask_box.reshape(2, 2) + shift)
+        mask_box = clipped_box(corners, loaded.original_size)
+    return KeypointDetection(
+        keypoints=original[list(COCO_FROM_BLAZEPOSE)],
+        confidences=confidences,
+        person_box=clipped_box(original, loaded.original_size),
+        mask_box=mask_box,
+        search_box=search_box,
+        image_size=loaded.original_size,
+        seconds=seconds,
+        detector_score=score,
+        presence=found.presence,
     )

@@ -1,0 +1,170 @@
+"""BlazePose run by hkpd: every person the detector finds, and 33 landmarks inside a region.
+
+The two steps of BlazePose (Bazarevsky et al., "BlazePose: On-device Real-time Body Pose
+tracking", 2020):
+
+1. **Person detector** (:meth:`BlazePose.find_people`): the photo letterboxed into 224×224,
+   scaled to [-1, 1]; per anchor a box, four keypoints and a score
+   (:mod:`hkpd.prediction.blazepose_decoding`); kept above ``min_detection_confidence`` and merged
+   by weighted non-maximum suppression. Each person's landmark region is the square around the
+   hip centre whose side is 1.25 × the diameter of the full-body circle, rotated so the body's
+   up is the crop's up (:func:`hkpd.prediction.blazepose_warp.person_region`).
+2. **Landmark model** (:meth:`BlazePose.landmarks`): that region resampled to 256×256 in [0, 1];
+   39 landmarks (the first 33 are BlazePose's), refined on their heatmaps, mapped back to the
+   photo; visibility is the sigmoid of the visibility logit; a pose-presence score below
+   :data:`POSE_PRESENCE_THRESHOLD` means no person in the region.
+
+All coordinates are ``(u, v)`` pixels of the ``pixels`` given, pixel centres at integers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hkpd.prediction.blazepose_anchors import ssd_anchor_centres
+from hkpd.prediction.blazepose_decoding import (
+    decode_detections,
+    decode_landmarks,
+    sigmoid,
+    weighted_nms,
+)
+from hkpd.prediction.blazepose_models import (
+    DEFAULT_THREADS,
+    DETECTOR_MODEL,
+    LANDMARK_MODEL,
+    TfliteModel,
+    shipped_model_path,
+)
+from hkpd.prediction.blazepose_warp import (
+    HALF_PIXEL,
+    Region,
+    crop,
+    letterbox_region,
+    person_region,
+)
+
+BLAZEPOSE_LANDMARKS = 33
+"""Landmarks BlazePose reports (the model's 6 auxiliary ones are dropped)."""
+
+REGION_SCALE = 1.25
+"""Landmark region side / full-body circle diameter."""
+
+POSE_PRESENCE_THRESHOLD = 0.5
+"""The landmark model's pose-presence score below which a region holds no person."""
+
+MASK_THRESHOLD = 0.5
+"""Segmentation probability above which a crop pixel belongs to the person."""
+
+
+@dataclass(frozen=True)
+class PersonCandidate:
+    """One person found by the detector.
+
+    Attributes:
+        score: detector confidence in [0, 1].
+        box: ``(4,)`` ``(x0, y0, x1, y1)`` detector box (the face and upper body, not the whole
+            person), photo pixels.
+        keypoints: ``(4, 2)`` hip centre, full-body circle point, shoulder centre, upper-body
+            circle point, photo pixels.
+        region: the landmark model's region for this person.
+    """
+
+    score: float
+    box: np.ndarray
+    keypoints: np.ndarray
+    region: Region
+
+
+@dataclass(frozen=True)
+class PoseLandmarks:
+    """BlazePose's 33 landmarks of the person in one region.
+
+    Attributes:
+        points: ``(33, 2)`` float64 photo pixels (outside the photo when the limb is).
+        visibility: ``(33,)`` float64 in [0, 1].
+        presence: pose-presence score in [0, 1].
+        region: the region the landmark model looked at.
+        mask_box: ``(4,)`` box of the person's segmentation mask, photo pixels (unclipped), or
+            None (not asked for, or empty).
+    """
+
+    points: np.ndarray
+    visibility: np.ndarray
+    presence: float
+    region: Region
+    mask_box: np.ndarray | None
+
+
+class BlazePose:
+    """The two models and the steps between them. Not thread-safe (callers serialise).
+
+    Args:
+        min_detection_confidence: the person detector's score threshold.
+        threads: interpreter threads per model.
+    """
+
+    def __init__(
+        self, min_detection_confidence: float = 0.5, threads: int = DEFAULT_THREADS
+    ) -> None:
+        self.min_detection_confidence = min_detection_confidence
+        self._detector = TfliteModel(shipped_model_path(DETECTOR_MODEL), threads)
+        self._landmarker = TfliteModel(shipped_model_path(LANDMARK_MODEL), threads)
+        self._anchors = ssd_anchor_centres(self._detector.input_size)
+
+    def find_people(self, pixels: np.ndarray) -> list[PersonCandidate]:
+        """Every person the detector finds in ``(H, W, 3)`` uint8 RGB ``pixels``, best first."""
+        height, width = pixels.shape[:2]
+        letterbox = letterbox_region(width, height)
+        size = self._detector.input_size
+        image = crop(pixels, letterbox, size, replicate=False).astype(np.float32) / 127.5 - 1.0
+        raw_boxes, raw_scores = self._detector(image)
+        detections = weighted_nms(
+            decode_detections(
+                raw_boxes, raw_scores, self._anchors, self.min_detection_confidence, size
+            )
+        )
+        people = []
+        for box, keypoints, score in zip(
+            detections.boxes, detections.keypoints, detections.scores, strict=True
+        ):
+            corners = letterbox.to_photo(box.reshape(2, 2)).reshape(4)
+            points = letterbox.to_photo(keypoints)
+            region = person_region(points[0], points[1], REGION_SCALE)
+            people.append(PersonCandidate(float(score), corners, points, region))
+        return people
+
+    def landmarks(
+        self, pixels: np.ndarray, region: Region, segmentation: bool = False
+    ) -> PoseLandmarks:
+        """BlazePose's 33 landmarks of the person in ``region`` of ``pixels``.
+
+        Args:
+            pixels: ``(H, W, 3)`` uint8 RGB.
+            region: where to look (e.g. :attr:`PersonCandidate.region`).
+            segmentation: also return the segmentation mask's box.
+        """
+        size = self._landmarker.input_size
+        image = crop(pixels, region, size, replicate=True).astype(np.float32) / 255.0
+        raw, presence, mask, heatmap, _world = self._landmarker(image)
+        found = decode_landmarks(raw, heatmap, size)
+        mask_box = _mask_box(mask[..., 0], region) if segmentation else None
+        return PoseLandmarks(
+            points=region.to_photo(found.points[:BLAZEPOSE_LANDMARKS]),
+            visibility=found.visibility[:BLAZEPOSE_LANDMARKS],
+            presence=float(np.asarray(presence).reshape(-1)[0]),
+            region=region,
+            mask_box=mask_box,
+        )
+
+
+def _mask_box(mask_logits: np.ndarray, region: Region) -> np.ndarray | None:
+    """Photo-pixel box of the crop pixels whose mask probability exceeds :data:`MASK_THRESHOLD`."""
+    rows, cols = np.nonzero(sigmoid(mask_logits) > MASK_THRESHOLD)
+    if rows.size == 0:
+        return None
+    size = mask_logits.shape[0]
+    centres = np.stack([cols, rows], axis=1) / size
+    points = region.to_photo(centres) + HALF_PIXEL
+    return np.concatenate([points.min(0), points.max(0)])
