@@ -14,13 +14,19 @@ Tables (markdown, for docs/explorer.md):
 3. a burst of 40 slider events in 0.4 s: sampling jobs actually run (coalescing);
 4. heatmap transport: coloured point cloud vs per-vertex-coloured GLB (bytes, encode time).
 
-Usage: python benchmarks/bench_explorer.py [--threads 2] [--repeats 15]
+With ``--real`` it runs the shipped ``Predictor`` (BlazePose, network, keypoint-evidence fit)
+on the shipped CC0 photo instead, with the occluder over the person's right shin, and
+``--uploads N`` then uploads N photos (the shipped one at other sizes) and reports the server's
+resident memory after each batch of uploads.
+
+Usage: python benchmarks/bench_explorer.py [--threads 2] [--repeats 15] [--real] [--uploads 20]
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import io
 import os
 import platform
 import statistics
@@ -34,13 +40,17 @@ import torch
 import trimesh
 import viser
 import websockets
+from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_explorer_double import OcclusionAwareDouble
 
 from hkpd.explorer.app import ExplorerApp
+from hkpd.explorer.cli import shipped_photo
 from hkpd.explorer.colour_map import uncertainty_colours
+from hkpd.explorer.provider import PredictorProvider
+from hkpd.prediction.image_input import load_image
 
 QUIET_S = 0.15
 
@@ -96,14 +106,22 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=15)
+    parser.add_argument("--real", action="store_true", help="the shipped model on its photo")
+    parser.add_argument("--uploads", type=int, default=0, help="then upload this many photos")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    double = OcclusionAwareDouble()
-    app = ExplorerApp(double, double.scene.image, port=0, num_samples=100, num_displayed=10)
+    if args.real:
+        provider, image = PredictorProvider(device="cpu"), load_image(shipped_photo()).pixels
+    else:
+        provider = OcclusionAwareDouble()
+        image = provider.scene.image
+    memory_before = resident_megabytes()
+    app = ExplorerApp(provider, image, port=0, num_samples=100, num_displayed=10)
     recorder = FrameRecorder(app.url)
-    app.wait_idle(60)
+    app.wait_idle(120)
     time.sleep(0.5)
     load = os.getloadavg()[0]
+    box = shin_box(app) if args.real else (250, 210, 300, 260)
 
     # 1. Concentration slider.
     delivered, computed, sampling, drawing, sizes = [], [], [], [], []
@@ -121,14 +139,16 @@ def main() -> None:
             sizes.append(size)
 
     # 2. Occluder change.
-    occluder = app.state.add_occluder((250, 210, 300, 260))
+    occluder = app.state.add_occluder(box)
     app.occluders_changed(True)
     app.wait_idle(30)
     time.sleep(0.3)
     occ_delivered, occ_predict = [], []
     for i in range(max(args.repeats // 2, 5)):
         start = time.perf_counter()
-        app.occluders_changed(app.state.move_occluder(occluder.ident, (249 - i, 210, 300, 261 + i)))
+        x0, y0, x1, y1 = box
+        moved = (x0 - 1 - i, y0, x1, y1 + 1 + i)
+        app.occluders_changed(app.state.move_occluder(occluder.ident, moved))
         app.wait_idle(30)
         idle = time.perf_counter()
         seconds, _ = recorder.delivered_after(start, idle - app.timings.draw)
@@ -149,7 +169,7 @@ def main() -> None:
 
     # 4. Heatmap transport.
     view = app.view
-    faces = double.body.faces.numpy()
+    faces = app.result.posterior.body.faces.numpy()
     colours = uncertainty_colours(view.uncertainty)
     encode_cloud, encode_glb = [], []
     for _ in range(5):
@@ -161,9 +181,19 @@ def main() -> None:
         mesh = trimesh.Trimesh(view.mode_vertices, faces, vertex_colors=rgba, process=False)
         glb_bytes = len(mesh.export(file_type="glb"))
         encode_glb.append(time.perf_counter() - t)
+
+    # 5. Server memory over uploads.
+    memory = [(0, resident_megabytes())]
+    for index in range(args.uploads):
+        scale = 0.6 + 0.4 * (index % 5) / 4
+        app.load_upload(f"photo_{index}.jpg", jpeg_bytes(image, scale), None)
+        app.wait_idle(120)
+        if (index + 1) % 5 == 0 or index + 1 == args.uploads:
+            memory.append((index + 1, resident_megabytes()))
     app.stop()
 
-    print(f"# hkpd explorer benchmark — {time.strftime('%Y-%m-%d %H:%M %Z')}")
+    model = "shipped Predictor on the shipped photo" if args.real else "test double"
+    print(f"# hkpd explorer benchmark ({model}) — {time.strftime('%Y-%m-%d %H:%M %Z')}")
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
         f"torch threads {args.threads}, load average {load:.1f} (shared machine)"
@@ -185,12 +215,11 @@ def main() -> None:
         f"{best_ms(delivered)} | 100 |"
     )
     print(
-        f"| occluder: prediction (test double) | {median_ms(occ_predict)} | "
-        f"{best_ms(occ_predict)} | |"
+        f"| occluder: prediction ({model}) | {median_ms(occ_predict)} | {best_ms(occ_predict)} | |"
     )
     print(
         f"| **occluder: change -> delivered (incl. 120 ms debounce)** | "
-        f"{median_ms(occ_delivered)} | {best_ms(occ_delivered)} | 500 |"
+        f"{median_ms(occ_delivered)} | {best_ms(occ_delivered)} | {1000 if args.real else 500} |"
     )
     print()
     print(
@@ -206,6 +235,39 @@ def main() -> None:
         f"{median_ms(encode_cloud)} ms; as per-vertex GLB: {glb_bytes / 1e3:.0f} kB, encode "
         f"{median_ms(encode_glb)} ms"
     )
+    if args.uploads:
+        print()
+        print(f"server resident memory: {memory_before:.0f} MB before the app started")
+        print("| uploads | resident MB |")
+        print("|---:|---:|")
+        for count, megabytes in memory:
+            print(f"| {count} | {megabytes:.0f} |")
+
+
+def resident_megabytes() -> float:
+    """This process's resident memory (VmRSS), MB."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def jpeg_bytes(image: np.ndarray, scale: float) -> bytes:
+    """``image`` resized by ``scale``, as JPEG file contents (a new upload each time)."""
+    height, width = image.shape[:2]
+    resized = Image.fromarray(image).resize((round(width * scale), round(height * scale)))
+    buffer = io.BytesIO()
+    resized.save(buffer, format="JPEG", quality=90)
+    return buffer.getvalue()
+
+
+def shin_box(app: ExplorerApp) -> tuple[float, float, float, float]:
+    """A box around the detected right knee and ankle of the first photo's person."""
+    keypoints = app.result.posterior.keypoints.numpy()
+    knee, ankle = keypoints[14], keypoints[16]
+    pad = 0.25 * float(np.hypot(*(knee - ankle)))
+    low, high = np.minimum(knee, ankle) - pad, np.maximum(knee, ankle) + pad
+    return (float(low[0]), float(low[1]), float(high[0]), float(high[1]))
 
 
 if __name__ == "__main__":
