@@ -10,7 +10,7 @@ import torch
 
 from hkpd.network import DistributionNetwork, NetworkConfig, NetworkOutput
 from hkpd.prediction.upright_reading import UprightReader
-from hkpd.prediction.upright_view import torso_tilt
+from hkpd.prediction.upright_view import UprightView, torso_tilt
 from hkpd.proxy import assemble_proxy
 from hkpd.proxy.heatmaps import heatmap_peaks, joint_heatmaps
 
@@ -79,11 +79,29 @@ class RecordingNetwork(torch.nn.Module):
         )
 
 
-def proxies_of(*people: np.ndarray) -> torch.Tensor:
+def proxies_of(*people: np.ndarray, present: torch.Tensor | None = None) -> torch.Tensor:
     points = torch.as_tensor(np.stack(people), dtype=torch.float32)
     edges = torch.zeros(len(people), SIZE, SIZE, dtype=torch.uint8)
     edges[:, 30:34, 20:44] = 1  # a bar, to see the edge channel move with the copy
-    return assemble_proxy(edges, points, torch.ones(len(people), 17, dtype=torch.bool))
+    if present is None:
+        present = torch.ones(len(people), 17, dtype=torch.bool)
+    return assemble_proxy(edges, points, present)
+
+
+def test_the_upright_copy_frames_only_the_joints_that_are_there() -> None:
+    observed = np.ones(17, dtype=bool)
+    observed[[0, 1, 2, 15, 16]] = False  # no face, no ankles
+    lying = turned(STANDING, -120.0)
+    read_as_zero, elsewhere = lying.copy(), lying.copy()
+    read_as_zero[~observed] = 0.0  # where heatmap_peaks puts absent joints
+    elsewhere[~observed] = 50.0
+    tilt = torso_tilt(lying, observed)
+    framed = [UprightView.from_tilt(tilt, points, SIZE, observed).box
+              for points in (read_as_zero, elsewhere)]  # fmt: skip
+    assert framed[0] == framed[1]
+    unframed = [UprightView.from_tilt(tilt, points, SIZE).box
+                for points in (read_as_zero, elsewhere)]  # fmt: skip
+    assert unframed[0] != unframed[1]  # without ``observed`` every point counts
 
 
 def test_the_reader_turns_leaning_people_upright_and_maps_the_answer_back() -> None:

@@ -151,7 +151,9 @@ class Predictor:
             if tilt is not None and abs(tilt) > np.radians(
                 self.evidence_config.upright_start_degrees
             ):
-                view = UprightView.from_tilt(tilt, prepared.keypoints_crop, self.crop_size)
+                view = UprightView.from_tilt(
+                    tilt, prepared.keypoints_crop, self.crop_size, observed
+                )
                 proxies.append(
                     build_proxy(
                         view.warp(prepared.crop_rgb),

@@ -62,7 +62,7 @@ class UprightReader(torch.nn.Module):
         for index in range(proxy.shape[0]):
             tilt = torso_tilt(points[index], observed[index])
             if tilt is not None and abs(tilt) > self.threshold:
-                views[index] = UprightView.from_tilt(tilt, points[index], size)
+                views[index] = UprightView.from_tilt(tilt, points[index], size, observed[index])
                 self.last_tilts_degrees[index] = math.degrees(tilt)
         if not views:
             return self.network(proxy)

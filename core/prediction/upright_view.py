@@ -84,14 +84,23 @@ class UprightView:
     size: int
 
     @classmethod
-    def from_tilt(cls, tilt: float, keypoints_crop: np.ndarray, size: int) -> UprightView:
-        """The view that undoes ``tilt`` (from :func:`torso_tilt`) for a ``size`` crop."""
+    def from_tilt(
+        cls,
+        tilt: float,
+        keypoints_crop: np.ndarray,
+        size: int,
+        observed: np.ndarray | None = None,
+    ) -> UprightView:
+        """The view that undoes ``tilt`` (from :func:`torso_tilt`) for a ``size`` crop; its box
+        frames the ``observed`` keypoints (``(17,)`` bool; None: all of them)."""
         cosine, sine = math.cos(tilt), math.sin(tilt)
         # A clockwise tilt is undone by turning counter-clockwise on screen (v points down).
         rotation = np.array([[cosine, sine], [-sine, cosine]])
         centre = (size - 1) / 2.0
         rotated = (np.asarray(keypoints_crop, dtype=np.float64) - centre) @ rotation.T + centre
-        return cls(rotation, CropTransform.from_keypoints(rotated, size=size), size)
+        weights = None if observed is None else np.asarray(observed, dtype=np.float64)
+        box = CropTransform.from_keypoints(rotated, weights, size=size, min_confidence=0.5)
+        return cls(rotation, box, size)
 
     @property
     def scale(self) -> float:
