@@ -29,7 +29,7 @@ from hkpd.explorer.photo_geometry import (
     screen_rect_to_box,
 )
 from hkpd.explorer.posterior_view import PosteriorView, compute_view
-from hkpd.explorer.provider import PosteriorProvider, PredictionResult
+from hkpd.explorer.provider import Box, PosteriorProvider, PredictionResult
 from hkpd.explorer.scene import COMBINED_OFFSET, HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
 from hkpd.explorer.state import MAX_OCCLUDERS, MAX_SAME_PERSON_PHOTOS, ExplorerState
 from hkpd.explorer.upload import UploadError, decode_upload
@@ -108,6 +108,7 @@ class ExplorerApp:
         self._framed: PhotoPlacement | None = None
         self._same_person_queue: list[tuple[np.ndarray, str, viser.ClientHandle | None, int]] = []
         self._combined: CombinedShape | None = None
+        self._people: tuple[Box, ...] = ()
         lanes = ("image", "predict", "sample", "same_person", "export")
         self.worker = CoalescingWorker(lanes, self._job_failed)
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
@@ -193,6 +194,20 @@ class ExplorerApp:
             self.scene.show_person_box(self.state.snapshot().person_box)
             self.worker.submit("predict", self._predict_job)
         return changed
+
+    @property
+    def people(self) -> tuple[Box, ...]:
+        """The boxes of every person found in the current photo (empty when the provider cannot
+        list them, or found nobody)."""
+        with self._lock:
+            return self._people
+
+    def select_person(self, index: int) -> bool:
+        """Predict for person ``index`` of :attr:`people`; False when there is no such person."""
+        people = self.people
+        if not 0 <= index < len(people):
+            return False
+        return self.set_person_box(people[index])
 
     def pick_person_next(self, enabled: bool = True) -> None:
         """The next box dragged on the photo picks the person instead of adding an occluder."""
@@ -343,6 +358,21 @@ class ExplorerApp:
         self.timings.predict = time.perf_counter() - started
         self._show_prediction(result, image, token)
 
+    def _find_people(self, image: np.ndarray, token: int) -> None:
+        """List the photo's people (when the provider can) and offer them in the panel."""
+        finder = getattr(self.provider, "find_people", None)
+        people: tuple[Box, ...] = ()
+        if finder is not None:
+            try:
+                people = tuple(tuple(float(v) for v in box) for box in finder(image))
+            except Exception as error:  # listing people is a convenience: say so, go on
+                self.errors.append(f"listing the people failed: {error}")
+        with self._lock:
+            if token != self._image_token:
+                return
+            self._people = people
+        self.panels.show_people(len(people))
+
     def _no_person(self, client: viser.ClientHandle | None = None) -> None:
         """Tell every tab (or ``client``) how to point at the person."""
         advice = (
@@ -392,6 +422,7 @@ class ExplorerApp:
             self._placed_token = token
         posterior = result.posterior
         if new_photo:
+            self._find_people(image, token)
             placement = photo_placement(result, image.shape[1], image.shape[0])
             self.scene.place_photo(image, placement)
             self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)

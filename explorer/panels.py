@@ -38,6 +38,7 @@ class PanelActions(Protocol):
     def set_plain_drag_draws(self, enabled: bool) -> None: ...
     def set_evidence(self, enabled: bool) -> None: ...
     def set_person_box(self, box: tuple[float, float, float, float] | None) -> bool: ...
+    def select_person(self, index: int) -> bool: ...
     def pick_person_next(self, enabled: bool = True) -> None: ...
     def show_fit(self, visible: bool, opacity: float) -> None: ...
     def set_display_options(
@@ -50,6 +51,14 @@ class PanelActions(Protocol):
     def clear_same_person(self) -> None: ...
     def request_export(self, file_format: str, client: viser.ClientHandle) -> None: ...
     def request_screenshot(self, client: viser.ClientHandle) -> None: ...
+
+
+NO_PERSON_CHOICE = "(one person)"
+
+
+def _person_choice(index: int, count: int) -> str:
+    """The dropdown label of person ``index`` (0-based) of ``count``."""
+    return f"Person {index + 1} of {count}" + (" (the detector's best)" if index == 0 else "")
 
 
 EXPONENT_MARKS = ((-1.0, "0.1×"), (0.0, "1×"), (1.0, "10×"))
@@ -112,6 +121,13 @@ class ExplorerPanels:
             self.pick.on_click(lambda _: self._start_picking())
             forget = gui.add_button("Forget the person box", icon=viser.Icon.X)
             forget.on_click(lambda _: app.set_person_box(None))
+            self.people = gui.add_dropdown(
+                "Person",
+                (NO_PERSON_CHOICE,),
+                visible=False,
+                hint="Several people were found: choose whose body to estimate",
+            )
+            self.people.on_update(lambda _: self._on_person_chosen())
             gui.add_markdown("*Shift + drag on the photo draws an occluder.*")
             self.draw_mode = gui.add_checkbox(
                 "Plain drag draws",
@@ -254,6 +270,22 @@ class ExplorerPanels:
     def show_same_person(self, text: str) -> None:
         """What the combined shape is made of (photos, std) or that there is none."""
         self.same_person_text.content = text
+
+    def show_people(self, count: int) -> None:
+        """Offer a choice of person when the photo shows several (hidden otherwise)."""
+        choices = tuple(_person_choice(i, count) for i in range(count)) or (NO_PERSON_CHOICE,)
+        self._showing_people = True  # setting the options is not the user's choice
+        try:
+            self.people.options = choices
+            self.people.value = NO_PERSON_CHOICE if count < 2 else choices[0]
+            self.people.visible = count >= 2
+        finally:
+            self._showing_people = False
+
+    def _on_person_chosen(self) -> None:
+        if getattr(self, "_showing_people", False) or self.people.value == NO_PERSON_CHOICE:
+            return
+        self.app.select_person(int(self.people.value.split()[1]) - 1)
 
     def _start_picking(self) -> None:
         self.app.pick_person_next(True)

@@ -58,6 +58,15 @@ class PosteriorProvider(Protocol):
         ...
 
 
+class PeopleFinder(Protocol):
+    """A provider that can also list every person in a photo (optional for providers)."""
+
+    def find_people(self, image: np.ndarray) -> list[Box]:
+        """The ``(x0, y0, x1, y1)`` box (photo pixels) of each person found in ``image``
+        ``(H, W, 3)`` uint8 RGB, best first; empty when nobody is found."""
+        ...
+
+
 class PredictorProvider:
     """Adapter from :class:`hkpd.prediction.Predictor` to :class:`PosteriorProvider`.
 
@@ -80,3 +89,8 @@ class PredictorProvider:
         boxes = [tuple(map(float, box)) for box in occluders] or None
         posterior = self.predictor.predict(image, occluders=boxes, bbox=bbox, evidence=evidence)
         return PredictionResult(posterior=posterior, proxy=posterior.network_input.proxy.cpu())
+
+    def find_people(self, image: np.ndarray) -> list[Box]:
+        """Every person BlazePose's person detector finds (boxes of their landmarks)."""
+        detections = self.predictor.detector.detect_all(image)
+        return [tuple(float(v) for v in d.person_box) for d in detections]

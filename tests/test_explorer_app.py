@@ -254,3 +254,43 @@ def test_the_fit_overlay_is_drawn_on_the_photo_and_can_be_hidden(app):
     assert "/photo/fit" not in app.server.scene._handle_from_node_name
     app.show_fit(True, 0.5)
     assert "/photo/fit" in app.server.scene._handle_from_node_name
+
+
+class TwoPeopleProvider:
+    """The test double, plus a person finder that reports two people."""
+
+    BOXES = ((10.0, 20.0, 200.0, 460.0), (220.0, 30.0, 380.0, 470.0))
+
+    def __init__(self) -> None:
+        self.double = OcclusionAwareDouble()
+        self.calls: list[object] = []
+
+    def predict(self, image, occluders, evidence=True, bbox=None):
+        self.calls.append(bbox)
+        return self.double.predict(image, occluders, evidence, bbox)
+
+    def find_people(self, image) -> list[tuple[float, float, float, float]]:
+        return list(self.BOXES)
+
+
+def test_several_people_are_offered_and_choosing_one_predicts_inside_its_box():
+    provider = TwoPeopleProvider()
+    explorer = ExplorerApp(provider, provider.double.scene.image, port=0, num_displayed=2)
+    try:
+        assert explorer.wait_idle(60)
+        assert explorer.people == TwoPeopleProvider.BOXES
+        dropdown = explorer.panels.people
+        assert dropdown.visible and len(dropdown.options) == 2
+        assert dropdown.value.startswith("Person 1 of 2")
+        assert provider.calls == [None]  # showing the choice predicted nothing more
+        dropdown.value = dropdown.options[1]  # as the user's choice arrives
+        assert explorer.wait_idle(30)
+        assert provider.calls[-1] == TwoPeopleProvider.BOXES[1]
+        assert explorer.state.snapshot().person_box == TwoPeopleProvider.BOXES[1]
+        assert not explorer.select_person(2) and not explorer.errors
+    finally:
+        explorer.stop()
+
+
+def test_one_person_or_no_finder_hides_the_choice(app):
+    assert app.people == () and not app.panels.people.visible
