@@ -147,6 +147,26 @@ def test_landmark_decoding_and_heatmap_refinement() -> None:
     np.testing.assert_allclose(far, [[1.2, 0.5], [0.5, -0.1]])
 
 
+def test_dropping_the_segmentation_head_keeps_the_other_outputs() -> None:
+    from hkpd.prediction.blazepose_models import (
+        LANDMARK_MODEL,
+        SEGMENTATION_OUTPUT,
+        TfliteModel,
+        drop_output,
+        shipped_model_path,
+    )
+
+    content = shipped_model_path(LANDMARK_MODEL).read_bytes()
+    full, pruned = TfliteModel(content), TfliteModel(drop_output(content, SEGMENTATION_OUTPUT))
+    image = np.random.default_rng(1).random((256, 256, 3), dtype=np.float32)
+    everything, fewer = full(image), pruned(image)
+    assert set(everything) - set(fewer) == {SEGMENTATION_OUTPUT}
+    for name, values in fewer.items():
+        np.testing.assert_array_equal(values, everything[name])
+    with pytest.raises(ValueError, match="no output"):
+        drop_output(content, "not_there")
+
+
 DEMO_PHOTOS = Path("/work/shared/data/demo_photos")
 SHIPPED_PHOTO = Path(__file__).parents[1] / "assets" / "photos" / "warrior_lunge.jpg"
 

@@ -155,7 +155,7 @@ class KeypointDetector:
         if self._closed:
             raise RuntimeError("this KeypointDetector has been closed; create a new one")
         if self._runner is None:
-            self._runner = BlazePose(self.min_detection_confidence)
+            self._runner = BlazePose(self.min_detection_confidence, segmentation=self.segmentation)
         return self._runner
 
     def detect(
