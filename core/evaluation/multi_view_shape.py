@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import torch
 
+from hkpd.body import BodyModel
 from hkpd.evaluation.metrics import MILLIMETRES_PER_METRE, pve_t_sc
 from hkpd.prediction.shape_combination import (
     combine_gaussians,
@@ -123,7 +124,7 @@ def predict_multi_view_shapes(
 @torch.no_grad()
 def multi_view_shape_table(
     predictions: MultiViewPredictions,
-    body,
+    body: BodyModel,
     uncertainty_samples: int = 50,
     uncertainty_bodies: int | None = None,
 ) -> dict[str, dict[str, float]]:

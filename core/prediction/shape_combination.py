@@ -100,8 +100,8 @@ def stack_shape_distributions(
     means, stds = [], []
     expected = None
     for index, item in enumerate(distributions, start=1):
-        mean = torch.as_tensor(item.shape_mean)
-        std = torch.as_tensor(item.shape_std)
+        mean = torch.as_tensor(item.shape_mean).detach().cpu()
+        std = torch.as_tensor(item.shape_std).detach().cpu()
         if mean.dim() != 1 or std.shape != mean.shape:
             raise ValueError(
                 f"photo {index}: shape mean and std must both be (K,) vectors, got "
