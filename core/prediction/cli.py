@@ -4,7 +4,7 @@ Usage::
 
     hkpd-predict IMAGE_OR_DIR... --out DIR [--model PATH] [--samples 10]
                  [--format ply|glb|obj|npz ...] [--bbox X0 Y0 X1 Y1] [--device auto] [--seed 0]
-                 [--uncertainty-samples 100]
+                 [--uncertainty-samples 100] [--same-person] [--overwrite]
 
 Folders are searched recursively for images (by extension), in sorted order. For every photo
 it writes into ``DIR/<image stem>/``:
