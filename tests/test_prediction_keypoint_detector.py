@@ -19,7 +19,7 @@ from hkpd.prediction import (
     NoPersonFoundError,
     load_image,
 )
-from hkpd.prediction.blazepose import PersonCandidate, PoseLandmarks
+from hkpd.prediction.blazepose import BLAZEPOSE_LANDMARK_NAMES, PersonCandidate, PoseLandmarks
 from hkpd.prediction.blazepose_warp import Region
 
 DEMO_PHOTOS = Path("/work/shared/data/demo_photos")
@@ -29,11 +29,17 @@ needs_demo_photos = pytest.mark.skipif(
 )
 
 
-def test_coco_indices_name_the_same_landmarks_in_mediapipe() -> None:
+def test_coco_indices_name_the_same_landmarks() -> None:
+    names = [BLAZEPOSE_LANDMARK_NAMES[index] for index in COCO_FROM_BLAZEPOSE]
+    assert names == list(COCO_KEYPOINT_NAMES)
+
+
+def test_landmark_names_agree_with_mediapipe() -> None:
     pose = pytest.importorskip("mediapipe.python.solutions.pose")
 
-    names = [pose.PoseLandmark(index).name.lower() for index in COCO_FROM_BLAZEPOSE]
-    assert names == list(COCO_KEYPOINT_NAMES)
+    assert [landmark.name.lower() for landmark in pose.PoseLandmark] == list(
+        BLAZEPOSE_LANDMARK_NAMES
+    )
 
 
 class MarkerFindingRunner:
