@@ -27,8 +27,7 @@ import numpy as np
 from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.evaluation.real_photos import load_coco_people
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
-
-COCO_FROM_BLAZEPOSE = (0, 2, 5, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24, 25, 26, 27, 28)
+from hkpd.prediction.keypoint_detector import COCO_FROM_BLAZEPOSE, KeypointDetector
 
 
 def cases(demo: Path | None, coco: Path | None) -> list[tuple[str, Path, np.ndarray | None]]:
@@ -65,8 +64,6 @@ def run_mediapipe(todo: list) -> tuple[np.ndarray, list[float]]:
 
 def run_hkpd(todo: list) -> tuple[np.ndarray, list[float]]:
     """The same with hkpd's runner (all 33 landmarks, no confidence gate)."""
-    from hkpd.prediction.keypoint_detector import KeypointDetector
-
     detector = KeypointDetector()
     out = np.full((len(todo), 33, 3), np.nan)
     seconds = []

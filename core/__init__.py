@@ -21,7 +21,7 @@ __all__ = ["BodyModel", "BodyPosterior", "Predictor", "__version__"]
 
 def __getattr__(name: str):
     """``hkpd.Predictor``, ``hkpd.BodyPosterior`` and ``hkpd.BodyModel``, imported on first use
-    (the predictor pulls in MediaPipe, which ``import hkpd`` alone should not)."""
+    (the predictor pulls in torch, OpenCV and LiteRT, which ``import hkpd`` alone should not)."""
     if name in ("Predictor", "BodyPosterior"):
         from hkpd import prediction
 
