@@ -6,7 +6,7 @@ gives the median over photos of each photo's median wall time, and the two model
 shared machine wall time grows with the load; the CPU time of a call (``detect`` CPU, all
 threads) does not, and with ``--threads 1`` it is the wall time on an idle core.
 
-Usage: python benchmarks/bench_keypoint_detector.py DIR [DIR ...] [--repeats 5] [--threads 2]
+Usage: python benchmarks/bench_keypoint_detector.py DIR [DIR ...] [--repeats 5] [--threads 1]
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folders", type=Path, nargs="+")
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--threads", type=int, default=2, help="interpreter threads per model")
+    parser.add_argument("--threads", type=int, default=1, help="interpreter threads per model")
     args = parser.parse_args()
     photos = [
         path

@@ -24,8 +24,10 @@ LANDMARK_MODEL = ("blazepose", "pose_landmark_full.tflite")
 SEGMENTATION_OUTPUT = "Identity_2"
 """The landmark model's ``(1, 256, 256, 1)`` segmentation logits."""
 
-DEFAULT_THREADS = 2
-"""Interpreter threads; BlazePose's small convolutions gain little beyond two."""
+DEFAULT_THREADS = 1
+"""Interpreter threads. A second thread did not shorten a call of either model on the 2-core
+development machine (11.1 vs 12.8 ms for the detector, 11.2 vs 11.6 ms for the landmark model)
+and costs CPU time that the rest of hkpd can use."""
 
 
 def shipped_model_path(parts: tuple[str, str]) -> Path:
