@@ -6,7 +6,11 @@ gives the median over photos of each photo's median wall time, and the two model
 shared machine wall time grows with the load; the CPU time of a call (``detect`` CPU, all
 threads) does not, and with ``--threads 1`` it is the wall time on an idle core.
 
+``--mediapipe`` times the legacy mediapipe solution the same way instead (where mediapipe is
+installed; ``hkpd.prediction.mediapipe_reference``).
+
 Usage: python benchmarks/bench_keypoint_detector.py DIR [DIR ...] [--repeats 5] [--threads 1]
+[--mediapipe]
 """
 
 from __future__ import annotations
@@ -23,11 +27,35 @@ from hkpd.prediction.blazepose import BlazePose
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
 
 
+def time_mediapipe(photos: list[Path], repeats: int) -> None:
+    """Median wall and CPU ms of the legacy solution's call per photo (warm graph)."""
+    from hkpd.prediction.mediapipe_reference import MediapipePose
+
+    pose = MediapipePose()
+    wall, cpu = [], []
+    for photo in photos:
+        loaded = load_image(photo)
+        pose.landmarks(loaded)
+        calls, cpu_calls = [], []
+        for _ in range(repeats):
+            start, start_cpu = time.perf_counter(), time.process_time()
+            pose.landmarks(loaded)
+            calls.append(time.perf_counter() - start)
+            cpu_calls.append(time.process_time() - start_cpu)
+        wall.append(1e3 * statistics.median(calls))
+        cpu.append(1e3 * statistics.median(cpu_calls))
+    pose.close()
+    print(f"mediapipe: wall {statistics.median(wall):.1f} ms median "
+          f"(p90 {statistics.quantiles(wall, n=10)[-1]:.1f}), CPU {statistics.median(cpu):.1f} ms, "
+          f"load average {os.getloadavg()[0]:.2f}")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folders", type=Path, nargs="+")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--threads", type=int, default=1, help="interpreter threads per model")
+    parser.add_argument("--mediapipe", action="store_true", help="time the legacy solution")
     args = parser.parse_args()
     photos = [
         path
@@ -35,6 +63,9 @@ def main() -> None:
         for path in sorted(folder.iterdir())
         if path.suffix.lower() in IMAGE_SUFFIXES
     ]
+    if args.mediapipe:
+        time_mediapipe(photos, args.repeats)
+        return
     runner = BlazePose(threads=args.threads)
     detector = KeypointDetector(runner=runner)
     print(f"{len(photos)} photos; {os.cpu_count()} CPUs; {args.threads} threads; "
