@@ -121,7 +121,9 @@ def test_photo_errors_score_the_prediction_and_the_detector_input() -> None:
         image_path=None, bbox=np.array([0, 0, 200, 400]), keypoints=keypoints,
         visible=np.ones(17, dtype=bool),
     )  # fmt: skip
-    predictor = type("Predictor", (), {"predict": lambda self, path, bbox, evidence, upright: posterior})()
+    predictor = type(
+        "Predictor", (), {"predict": lambda self, path, bbox, evidence, upright: posterior}
+    )()
     posterior = _FixedPosterior(person, shift_px=4.0)
     result = evaluate_photos(predictor, [person], num_samples=3, show_progress=False)
     assert result["people"] == 1 and result["failed"] == 0
