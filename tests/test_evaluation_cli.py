@@ -15,6 +15,15 @@ from hkpd.network.config import NetworkConfig
 from hkpd.training.checkpoint import save_checkpoint
 
 
+def tiny_checkpoint(tmp_path):
+    """A small random network's checkpoint (seeded, 64-pixel input)."""
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    torch.manual_seed(0)
+    return save_checkpoint(
+        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+
+
 def test_eval_prints_a_markdown_table(tmp_path, capsys) -> None:
     config = NetworkConfig(backbone_base_width=8, image_size=64)
     checkpoint = save_checkpoint(
@@ -154,11 +163,7 @@ def test_concentration_scaling_scales_F_and_keeps_the_mode() -> None:
 
 
 def test_eval_reports_one_row_per_concentration_scale(tmp_path, capsys) -> None:
-    config = NetworkConfig(backbone_base_width=8, image_size=64)
-    torch.manual_seed(0)
-    checkpoint = save_checkpoint(
-        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
-    )
+    checkpoint = tiny_checkpoint(tmp_path)
     report = tmp_path / "report.md"
     arguments = [str(checkpoint), "--count", "3", "--samples", "4", "--out", str(report)]
     assert eval_main([*arguments, "--concentration-scale", "1", "1000"]) == 0
@@ -186,11 +191,7 @@ def test_report_keeps_two_decimals_below_ten() -> None:
 
 
 def test_eval_with_evidence_scores_both_posteriors(tmp_path, capsys) -> None:
-    config = NetworkConfig(backbone_base_width=8, image_size=64)
-    torch.manual_seed(0)
-    checkpoint = save_checkpoint(
-        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
-    )
+    checkpoint = tiny_checkpoint(tmp_path)
     report = tmp_path / "report.md"
     arguments = [str(checkpoint), "--count", "4", "--samples", "3", "--out", str(report)]
     assert eval_main([*arguments, "--evidence", "--occlusion-cases", "2"]) == 0
@@ -208,11 +209,7 @@ def test_eval_with_evidence_scores_both_posteriors(tmp_path, capsys) -> None:
 
 
 def test_eval_scores_the_upright_reading_on_each_split(tmp_path) -> None:
-    config = NetworkConfig(backbone_base_width=8, image_size=64)
-    torch.manual_seed(0)
-    checkpoint = save_checkpoint(
-        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
-    )
+    checkpoint = tiny_checkpoint(tmp_path)
     report = tmp_path / "report.md"
     arguments = [str(checkpoint), "--count", "4", "--samples", "2", "--out", str(report)]
     assert eval_main([*arguments, "--any-orientation", "--upright-reading"]) == 0
