@@ -121,3 +121,8 @@ def test_train_config_builds_the_mix_and_checks_it() -> None:
         TrainConfig(roll_probability=2).validate()
     with pytest.raises(ValueError, match="add up"):
         TrainConfig(archetype_share=0.7, limb_mix_share=0.5).validate()
+    assert config.data_config().orientation.max_roll_deg == 180.0  # any roll unless limited
+    limited = TrainConfig(roll_probability=1.0, max_roll_deg=45.0)
+    assert limited.validate().data_config().orientation.max_roll_deg == 45.0
+    with pytest.raises(ValueError, match="max-roll-deg"):
+        TrainConfig(max_roll_deg=200.0).validate()

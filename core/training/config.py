@@ -73,6 +73,8 @@ class TrainConfig:
         roll_probability: share of training images whose view is rolled about the optical
             axis by a uniform angle (leaning, lying, upside-down people;
             :class:`hkpd.synthesis.orientation.OrientationMix`); 0 keeps people upright.
+        max_roll_deg: largest roll of the rolled images, degrees (180: any in-plane
+            orientation; 45 leaves what the predictor's upright reading does not undo).
         steep_view_probability: share of training images seen steeply from above or below.
         archetype_share: share of training poses drawn from the pose families (sitting,
             kneeling, lunging, squatting, arms overhead, ...; :mod:`hkpd.poses.archetypes`).
@@ -121,6 +123,7 @@ class TrainConfig:
     limb_occlusion_probability: float = 0.0
     max_minutes: float | None = None
     roll_probability: float = 0.0
+    max_roll_deg: float = 180.0
     steep_view_probability: float = 0.0
     archetype_share: float = 0.0
     limb_mix_share: float = 0.0
@@ -157,6 +160,8 @@ class TrainConfig:
                 raise ValueError(f"{_flag(name)} is a probability in [0, 1], got {value}")
         if self.archetype_share + self.limb_mix_share > 1.0:
             raise ValueError("--archetype-share and --limb-mix-share add up to more than 1")
+        if not 0.0 <= self.max_roll_deg <= 180.0:
+            raise ValueError(f"--max-roll-deg must lie in [0, 180], got {self.max_roll_deg}")
         if not 0.0 <= self.keypoint_noise_sigma < 0.5:
             raise ValueError(
                 f"--keypoint-noise-sigma is a fraction of the crop in [0, 0.5), got "
@@ -193,6 +198,7 @@ class TrainConfig:
         )
         orientation = OrientationMix(
             roll_probability=self.roll_probability,
+            max_roll_deg=self.max_roll_deg,
             steep_view_probability=self.steep_view_probability,
         )
         return SyntheticDataConfig(
