@@ -19,14 +19,14 @@ from dataclasses import replace
 import numpy as np
 import torch
 
+from hkpd.conditioning import EvidenceConfig
 from hkpd.network.output import NetworkOutput
 from hkpd.prediction.upright_view import UprightView, torso_tilt
 from hkpd.proxy import assemble_proxy
 from hkpd.proxy.heatmaps import heatmap_peaks
 
-UPRIGHT_READING_DEGREES = 30.0
-"""Examples leaning more than this are read from an upright copy (the predictor's default,
-``EvidenceConfig.upright_start_degrees``)."""
+UPRIGHT_READING_DEGREES = EvidenceConfig().upright_start_degrees
+"""Examples leaning more than this (30°) are read from an upright copy, as the predictor does."""
 
 
 class UprightReader(torch.nn.Module):
