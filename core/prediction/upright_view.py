@@ -50,11 +50,15 @@ def torso_tilt(keypoints: np.ndarray, observed: np.ndarray) -> float | None:
     if sides:
         direction = np.mean([points[s] - points[h] for s, h in sides], axis=0)
     else:
-        upper = _observed_mean(points, seen, SHOULDERS) or _observed_mean(points, seen, HEAD)
-        lower = _observed_mean(points, seen, HIPS) or _observed_mean(points, seen, KNEES)
+        upper = _observed_mean(points, seen, SHOULDERS)
+        if upper is None:
+            upper = _observed_mean(points, seen, HEAD)
+        lower = _observed_mean(points, seen, HIPS)
+        if lower is None:
+            lower = _observed_mean(points, seen, KNEES)
         if upper is None or lower is None:
             return None
-        direction = upper[0] - lower[0]
+        direction = upper - lower
     if not np.isfinite(direction).all() or np.hypot(*direction) < 1e-6:
         return None
     return math.atan2(direction[0], -direction[1])
@@ -62,11 +66,10 @@ def torso_tilt(keypoints: np.ndarray, observed: np.ndarray) -> float | None:
 
 def _observed_mean(
     points: np.ndarray, seen: np.ndarray, indices: tuple[int, ...]
-) -> tuple[np.ndarray] | None:
-    """The mean of the observed ``indices`` (wrapped in a tuple, so that ``or`` can chain the
-    fallbacks), or None when none is observed."""
+) -> np.ndarray | None:
+    """``(2,)`` mean of the observed ``indices``, or None when none is observed."""
     chosen = [i for i in indices if seen[i]]
-    return (points[chosen].mean(0),) if chosen else None
+    return points[chosen].mean(0) if chosen else None
 
 
 @dataclass(frozen=True)
