@@ -243,11 +243,60 @@ def test_detect_all_returns_one_detection_per_person() -> None:
                 PersonCandidate(0.7, box, np.zeros((4, 2)), right),
             ]
 
-    found = KeypointDetector(runner=TwoPeople()).detect_all(marker_photo())
+    found = KeypointDetector(runner=TwoPeople()).detect_all(marker_photo(), tiles=1)
     assert [d.detector_score for d in found] == [0.9, 0.7]
     np.testing.assert_allclose(found[0].keypoints[0], [100.0, 100.0])
     np.testing.assert_allclose(found[1].keypoints[0], [600.0, 300.0])
     assert KeypointDetector(runner=NobodyRunner()).detect_all(marker_photo()) == []
+
+
+class BlobRunner(MarkerFindingRunner):
+    """Finds a person only where the part it is shown holds one whole white blob (as a small
+    person is found in a part of a photo, not in the whole); landmarks spread over the blob."""
+
+    def find_people(self, pixels):
+        self.calls += 1
+        ys, xs = np.nonzero(pixels[:, :, 0] > 127)
+        if xs.size == 0 or np.ptp(xs) > 40:  # nothing, or two blobs: too small to tell apart
+            return []
+        centre = np.array([xs.mean(), ys.mean()])
+        return [PersonCandidate(0.8, np.r_[centre - 5, centre + 5], np.tile(centre, (4, 1)),
+                                Region(centre, 20.0, 0.0))]  # fmt: skip
+
+    def landmarks(self, pixels, region, segmentation=False):
+        spread = np.linspace(-8.0, 8.0, 33)[:, None] * np.array([[1.0, 1.5]])
+        return PoseLandmarks(region.centre + spread, np.full(33, 0.9), 0.99, region, None)
+
+
+def test_detect_all_searches_parts_of_the_photo_and_keeps_each_person_once() -> None:
+    photo = np.zeros((300, 600, 3), np.uint8)
+    photo[40:60, 50:70] = 255  # two small people far apart: the whole photo shows two blobs
+    photo[230:250, 520:540] = 255
+    runner = BlobRunner()
+    assert KeypointDetector(runner=runner).detect_all(photo, tiles=1) == []
+    found = KeypointDetector(runner=runner).detect_all(photo)
+    assert runner.calls == 1 + 1 + 9  # the whole photo (twice), then the 3 x 3 parts
+    centres = sorted(tuple(np.round((d.person_box[:2] + d.person_box[2:]) / 2, 1)) for d in found)
+    assert centres == [(59.5, 49.5), (529.5, 239.5)]  # each once, in photo pixels
+
+
+def test_tile_bounds_cover_the_photo_with_overlapping_parts() -> None:
+    from hkpd.prediction.detection_boxes import box_iou, tile_bounds
+
+    bounds = tile_bounds(600, 300, 3)
+    assert (
+        bounds[0] == (0, 0, 600, 300)
+        and len(bounds) == 10
+        and tile_bounds(600, 300, 1) == [(0, 0, 600, 300)]
+    )
+    covered = np.zeros((300, 600), bool)
+    for x0, y0, x1, y1 in bounds[1:]:
+        assert 0 <= x0 < x1 <= 600 and 0 <= y0 < y1 <= 300
+        assert x1 - x0 <= 300 and y1 - y0 <= 150  # 1.5 cells at most
+        covered[y0:y1, x0:x1] = True
+    assert covered.all()
+    assert box_iou(np.array([0, 0, 10, 10.0]), np.array([5, 0, 15, 10.0])) == pytest.approx(1 / 3)
+    assert box_iou(np.zeros(4), np.zeros(4)) == 0.0
 
 
 SHIPPED_PHOTO = Path(__file__).parents[1] / "assets" / "photos" / "warrior_lunge.jpg"

@@ -83,3 +83,40 @@ def no_person_message(loaded: LoadedImage, search_box: np.ndarray | None) -> str
         f"{loaded.source}: no person found {where}; {hint}, or use a photo where the person is "
         "large, well lit and mostly in the frame"
     )
+
+
+TILE_OVERLAP = 1.5
+"""A tile of :func:`tile_bounds` is this many grid cells wide and high (neighbours overlap)."""
+
+
+def tile_bounds(width: int, height: int, tiles: int) -> list[tuple[int, int, int, int]]:
+    """The whole ``width × height`` image, then a ``tiles × tiles`` grid of overlapping parts.
+
+    Each part is centred on its grid cell and :data:`TILE_OVERLAP` cells wide and high, clipped
+    to the image, so that a person on a cell border lies wholly inside some part.
+
+    Returns:
+        ``(x0, y0, x1, y1)`` integer slice bounds, the whole image first (``1 + tiles²``
+        entries; just the whole image for ``tiles <= 1``).
+    """
+    bounds = [(0, 0, width, height)]
+    if tiles <= 1:
+        return bounds
+    cell_w, cell_h = width / tiles, height / tiles
+    half_w, half_h = TILE_OVERLAP * cell_w / 2, TILE_OVERLAP * cell_h / 2
+    for row in range(tiles):
+        for column in range(tiles):
+            u, v = (column + 0.5) * cell_w, (row + 0.5) * cell_h
+            x0, x1 = max(0, round(u - half_w)), min(width, round(u + half_w))
+            y0, y1 = max(0, round(v - half_h)), min(height, round(v + half_h))
+            bounds.append((int(x0), int(y0), int(x1), int(y1)))
+    return bounds
+
+
+def box_iou(first: np.ndarray, second: np.ndarray) -> float:
+    """Intersection over union of two ``(x0, y0, x1, y1)`` boxes (0 for empty boxes)."""
+    low = np.maximum(first[:2], second[:2])
+    high = np.minimum(first[2:], second[2:])
+    inter = float(np.prod(np.clip(high - low, 0, None)))
+    union = float(np.prod(first[2:] - first[:2]) + np.prod(second[2:] - second[:2])) - inter
+    return inter / union if union > 0 else 0.0
