@@ -50,30 +50,32 @@ def run_mediapipe(todo: list) -> tuple[np.ndarray, list[float]]:
     from hkpd.prediction.mediapipe_reference import MediapipePose
 
     pose = MediapipePose()
-    out = np.full((len(todo), 33, 3), np.nan)
-    seconds = []
-    for i, (_, path, bbox) in enumerate(todo):
-        start = time.perf_counter()
-        landmarks = pose.landmarks(path, bbox)
-        seconds.append(time.perf_counter() - start)
-        if landmarks is not None:
-            out[i] = landmarks
-    pose.close()
-    return out, seconds
+    try:
+        return timed_landmarks(pose.landmarks, todo)
+    finally:
+        pose.close()
 
 
 def run_hkpd(todo: list) -> tuple[np.ndarray, list[float]]:
     """The same with hkpd's runner (all 33 landmarks, no confidence gate)."""
     detector = KeypointDetector()
+    try:
+        return timed_landmarks(detector.landmarks33, todo)
+    finally:
+        detector.close()
+
+
+def timed_landmarks(landmarks_of, todo: list) -> tuple[np.ndarray, list[float]]:
+    """``landmarks_of(path, bbox)`` for every case: ``(N, 33, 3)`` (NaN where it found no
+    person) and the seconds of each call."""
     out = np.full((len(todo), 33, 3), np.nan)
     seconds = []
     for i, (_, path, bbox) in enumerate(todo):
         start = time.perf_counter()
-        landmarks = detector.landmarks33(path, bbox)
+        landmarks = landmarks_of(path, bbox)
         seconds.append(time.perf_counter() - start)
         if landmarks is not None:
             out[i] = landmarks
-    detector.close()
     return out, seconds
 
 
