@@ -78,6 +78,12 @@ class PredictorProvider:
         from hkpd.prediction import Predictor
 
         self.predictor: Predictor = Predictor.from_pretrained(path, device=device)
+        if self.predictor.image_proxy == "silhouette":
+            self.predictor.close()
+            raise ValueError(
+                f"{path} reads person silhouettes (a proxy-ablation model) and the explorer "
+                "has no person segmentation; use an edge model such as the shipped one"
+            )
 
     def predict(
         self,

@@ -61,6 +61,42 @@ def test_coco_reader_keeps_mostly_visible_people(tmp_path) -> None:
     assert len(people) == 1
     np.testing.assert_allclose(people[0].bbox, [5, 6, 105, 206])
     assert people[0].visible.all() and people[0].keypoints[3].tolist() == [13, 23]
+    with pytest.raises(ValueError, match="no polygon mask"):
+        people[0].silhouette()
+
+
+def test_coco_person_masks_become_silhouettes_for_silhouette_networks(tmp_path) -> None:
+    from hkpd.evaluation.real_photos import evaluate_photos
+
+    (tmp_path / "annotations").mkdir()
+    (tmp_path / "val2017").mkdir()
+    (tmp_path / "val2017" / "1.jpg").write_bytes(b"")
+    full = [value for i in range(17) for value in (10 + i, 20 + i, 2)]
+    square = [10, 20, 30, 20, 30, 50, 10, 50]  # x, y pairs
+    data = {
+        "images": [{"id": 1, "file_name": "1.jpg", "width": 64, "height": 80}],
+        "annotations": [
+            {"image_id": 1, "keypoints": full, "bbox": [5, 6, 30, 40], "iscrowd": 0,
+             "segmentation": [square, [40, 60, 44, 60, 44, 64]]},
+        ],
+    }  # fmt: skip
+    (tmp_path / "annotations" / "person_keypoints_val2017.json").write_text(json.dumps(data))
+    (person,) = load_coco_people(tmp_path)
+    mask = person.silhouette()
+    assert mask.shape == (80, 64) and mask.dtype == bool
+    assert mask[20:51, 10:31].all() and mask[61, 41] and mask.sum() < 31 * 21 + 20
+
+    seen = []
+
+    class SilhouettePredictor:
+        image_proxy = "silhouette"
+
+        def predict(self, path, bbox, evidence, upright, silhouette):
+            seen.append(silhouette)
+            raise ValueError("stop here")
+
+    result = evaluate_photos(SilhouettePredictor(), [person], show_progress=False)
+    assert result["failed"] == 1 and seen[0] is not None and (seen[0] == mask).all()
 
 
 def test_occlusion_response_runs_and_covers_the_limb() -> None:

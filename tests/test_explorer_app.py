@@ -294,3 +294,20 @@ def test_several_people_are_offered_and_choosing_one_predicts_inside_its_box():
 
 def test_one_person_or_no_finder_hides_the_choice(app):
     assert app.people == () and not app.panels.people.visible
+
+
+def test_a_silhouette_model_is_refused_at_start(tmp_path) -> None:
+    import torch
+
+    from hkpd.explorer.provider import PredictorProvider
+    from hkpd.network import DistributionNetwork
+    from hkpd.network.config import NetworkConfig
+    from hkpd.training.checkpoint import save_checkpoint
+
+    config = NetworkConfig(backbone_base_width=8, image_size=64, image_proxy="silhouette")
+    torch.manual_seed(0)
+    model = save_checkpoint(
+        tmp_path / "silhouette.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    with pytest.raises(ValueError, match="no person segmentation"):
+        PredictorProvider(model, device="cpu")

@@ -93,6 +93,16 @@ def test_config_round_trip_and_from_config():
         NetworkConfig(pose_head="cascade")
 
 
+def test_the_image_proxy_sets_the_input_channels():
+    rgb = DistributionNetwork(NetworkConfig(image_proxy="rgb", input_channels=20, **TINY)).eval()
+    assert rgb(torch.rand(1, 20, 64, 64)).F.shape == (1, 23, 3, 3)
+    assert NetworkConfig.from_dict(rgb.config.to_dict()).image_proxy == "rgb"
+    with pytest.raises(ValueError, match="'rgb' proxy has 20 channels, but input_channels is 18"):
+        NetworkConfig(image_proxy="rgb")
+    with pytest.raises(ValueError, match="unknown image proxy"):
+        NetworkConfig(image_proxy="depth")
+
+
 def test_state_dict_loads_into_network_from_same_config(network):
     clone = DistributionNetwork.from_config(network.config.to_dict())
     clone.load_state_dict(network.state_dict())

@@ -271,6 +271,22 @@ def test_real_loader_reports_a_missing_model(photos, tmp_path, capsys):
     assert "nope.pt" in capsys.readouterr().err
 
 
+def test_a_silhouette_model_is_refused_with_the_reason(photos, tmp_path, capsys):
+    from hkpd.network import DistributionNetwork
+    from hkpd.network.config import NetworkConfig
+    from hkpd.training.checkpoint import save_checkpoint
+
+    config = NetworkConfig(backbone_base_width=8, image_size=64, image_proxy="silhouette")
+    model = save_checkpoint(
+        tmp_path / "silhouette.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    out = tmp_path / "out"
+    code = cli.main([str(photos["person"]), "--out", str(out), "--model", str(model)])
+    assert code == 2
+    assert "reads person silhouettes" in capsys.readouterr().err
+    assert not out.exists() or not any(out.iterdir())
+
+
 def test_missing_input_only_exits_1(photos, tmp_path, capsys, fake_predictor_factory,
                                     checkpoint, monkeypatch):  # fmt: skip
     monkeypatch.setattr(cli, "load_predictor", fake_predictor_factory)

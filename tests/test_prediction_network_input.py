@@ -99,3 +99,36 @@ def test_real_photo_with_the_legs_hidden() -> None:
     assert (prepared.confidences[:11] > 0.9).all()
     assert (prepared.proxy[1:][legs] == 0).all()
     assert prepared.image.original_size == (1080, 720)
+
+
+def test_silhouette_and_rgb_proxies_from_a_photo() -> None:
+    """The proxy ablation's networks read the person mask (occluders removed) or the colours."""
+    rng = np.random.default_rng(2)
+    photo = rng.integers(60, 200, (480, 640, 3), dtype=np.uint8)
+    keypoints = np.stack([np.linspace(250, 390, 17), np.linspace(60, 420, 17)], 1)
+    mask = np.zeros((480, 640), bool)
+    mask[40:440, 230:410] = True
+    detector = FixedDetector(keypoints)
+    with pytest.raises(ValueError, match="reads a person silhouette: pass silhouette="):
+        prepare_network_input(photo, detector, image_proxy="silhouette")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"must be \(480, 640\) like the photo"):
+        prepare_network_input(photo, detector, image_proxy="silhouette", silhouette=mask[:100])  # type: ignore[arg-type]
+
+    occluder = (200, 300, 450, 480)
+    prepared = prepare_network_input(
+        photo, detector, occluders=[occluder], image_proxy="silhouette", silhouette=mask
+    )  # type: ignore[arg-type]
+    crop_mask = prepared.crop_silhouette
+    assert crop_mask is not None and crop_mask.dtype == bool and crop_mask.any()
+    np.testing.assert_array_equal(prepared.proxy[0].numpy() == 1.0, crop_mask)
+    # Nothing of the person is left under the occluder (rows >= 300 of the photo).
+    covered = prepared.crop.image_to_crop(np.array([[320.0, 310.0]]))[0].round().astype(int)
+    assert not crop_mask[covered[1]:, :].any()  # fmt: skip
+    above = prepared.crop.image_to_crop(np.array([[320.0, 200.0]]))[0].round().astype(int)
+    assert crop_mask[above[1], above[0]]
+
+    rgb = prepare_network_input(photo, detector, image_proxy="rgb")  # type: ignore[arg-type]
+    assert tuple(rgb.proxy.shape) == (20, 256, 256) and rgb.crop_silhouette is None
+    np.testing.assert_allclose(
+        rgb.proxy[:3].permute(1, 2, 0).numpy() * 255, rgb.crop_rgb, atol=1e-3
+    )

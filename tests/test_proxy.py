@@ -8,11 +8,16 @@ import torch
 
 from hkpd.proxy import (
     CONFIDENCE_THRESHOLD,
+    IMAGE_PROXIES,
+    assemble_proxy,
     build_proxy,
     build_proxy_batch,
     canny_edges,
     heatmap_std,
+    image_planes_batch,
     joint_heatmaps,
+    proxy_channels,
+    proxy_image_planes,
     square_box_around_keypoints,
 )
 
@@ -81,3 +86,35 @@ def test_square_box_around_keypoints() -> None:
     torch.testing.assert_close(side, torch.tensor([120.0]))
     with pytest.raises(ValueError, match="two keypoints"):
         square_box_around_keypoints(keypoints, torch.tensor([[True, False, False]]))
+
+
+def test_image_proxies_layout_and_round_trip() -> None:
+    rng = np.random.default_rng(3)
+    images = rng.integers(0, 255, (2, 32, 32, 3), dtype=np.uint8)
+    silhouettes = rng.random((2, 32, 32)) > 0.5
+    keypoints, present = torch.rand(2, 17, 2) * 32, torch.ones(2, 17, dtype=torch.bool)
+    for kind, channels in IMAGE_PROXIES.items():
+        planes = image_planes_batch(images, kind, silhouettes)
+        assert planes.shape == (2, channels, 32, 32) and planes.dtype == torch.uint8
+        proxy = assemble_proxy(planes, keypoints, present)
+        assert proxy.shape == (2, proxy_channels(kind), 32, 32)
+        torch.testing.assert_close(proxy_image_planes(proxy), planes)
+        torch.testing.assert_close(
+            proxy, build_proxy_batch(images, keypoints, present, None, kind, silhouettes)
+        )
+    rgb = build_proxy_batch(images, keypoints, present, image_proxy="rgb")
+    np.testing.assert_allclose(rgb[:, :3].permute(0, 2, 3, 1).numpy(), images / 255, atol=1e-6)
+    silhouette = build_proxy(images[0], keypoints[0], np.ones(17), "silhouette", silhouettes[0])
+    np.testing.assert_array_equal(silhouette[0].numpy() == 1.0, silhouettes[0])
+
+
+def test_image_proxy_errors_say_what_is_missing() -> None:
+    images = np.zeros((1, 16, 16, 3), np.uint8)
+    with pytest.raises(ValueError, match="silhouette proxy needs person masks"):
+        image_planes_batch(images, "silhouette")
+    with pytest.raises(ValueError, match=r"silhouettes must be \(1, 16, 16\)"):
+        image_planes_batch(images, "silhouette", np.ones((1, 8, 8), bool))
+    with pytest.raises(ValueError, match="unknown image proxy 'depth'"):
+        image_planes_batch(images, "depth")
+    with pytest.raises(ValueError, match="uint8"):
+        assemble_proxy(torch.zeros(1, 1, 16, 16), torch.zeros(1, 17, 2), torch.ones(1, 17).bool())

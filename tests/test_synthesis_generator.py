@@ -123,8 +123,9 @@ def test_worker_processes_give_the_same_stream(generator) -> None:
 
 def test_packed_batch_unpacks_to_the_generated_batch(generator) -> None:
     packed = generator.generate_packed(3, seed=11)
-    assert packed.edge_bits.dtype == torch.uint8
-    assert packed.edge_bits.shape == (3, SIZE, SIZE)
+    assert packed.image_planes.dtype == torch.uint8
+    assert packed.image_planes.shape == (3, 1, SIZE, SIZE)
+    assert set(packed.image_planes.unique().tolist()) <= {0, 255}
     unpacked = packed.unpack()
     direct = generator.generate(3, seed=11).batch
     for name in ("proxy", "body_pose", "betas", "keypoints2d", "visible", "joints3d"):
@@ -178,3 +179,34 @@ def test_fixed_betas_change_only_the_shape(generator) -> None:
         generator.generate(3, seed=11, betas=torch.zeros(2, 10))
     with pytest.raises(ValueError, match="finite"):
         generator.generate(3, seed=11, betas=torch.full((3, 10), float("nan")))
+
+
+def test_silhouette_and_rgb_proxies_share_the_edge_proxys_examples(generator) -> None:
+    """The ablation's proxies: same bodies, keypoints and heatmaps for one seed; the image part
+    is the rendered RGB crop, or the body's silhouette without what occluders hide."""
+    edges = generator.generate(4, seed=21)
+    made = {}
+    for kind in ("silhouette", "rgb"):
+        other = SyntheticDataGenerator(
+            ProceduralPosePrior(),
+            SyntheticDataConfig(image_size=SIZE, image_proxy=kind),
+            body=generator.body,
+        )
+        made[kind] = other.generate(4, seed=21)
+        torch.testing.assert_close(made[kind].batch.body_pose, edges.batch.body_pose)
+        torch.testing.assert_close(made[kind].batch.proxy[:, -17:], edges.batch.proxy[:, 1:])
+    rgb = made["rgb"]
+    assert rgb.batch.proxy.shape == (4, 20, SIZE, SIZE)
+    np.testing.assert_allclose(
+        rgb.batch.proxy[:, :3].permute(0, 2, 3, 1).numpy() * 255, rgb.images, atol=1e-3
+    )
+    silhouette = made["silhouette"].batch.proxy[:, 0]
+    assert set(silhouette.unique().tolist()) == {0.0, 1.0}
+    body = (made["silhouette"].part_map >= 0).cpu()
+    assert not bool((silhouette.bool() & ~body).any())  # never outside the body
+    # The visible keypoints (loss targets) lie on the silhouette or next to it.
+    batch = made["silhouette"].batch
+    grown = torch.nn.functional.max_pool2d(silhouette[:, None], 5, 1, 2)[:, 0]
+    pixel = batch.keypoints2d.round().long().clamp(0, SIZE - 1)
+    on_body = grown[torch.arange(4)[:, None], pixel[..., 1], pixel[..., 0]] > 0
+    assert float(on_body[batch.visible].float().mean()) > 0.9

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from hkpd.training.ablation import ABLATION_RUNS, ablation_configs, main
+from hkpd.training.ablation import ABLATION_RUNS, PROXY_RUNS, ablation_configs, main
 from hkpd.training.checkpoint import load_network, read_checkpoint
 from hkpd.training.config import TrainConfig
 
@@ -23,6 +23,21 @@ def test_configs_differ_only_in_head_and_samples_loss(tmp_path) -> None:
         assert (config.steps, config.joints3d_loss_from, config.image_size) == (123, 9, 96)
     with pytest.raises(ValueError, match="samples-loss-from"):
         ablation_configs(TrainConfig(samples_loss_from=-1), tmp_path)
+
+
+def test_proxy_study_differs_only_in_the_image_proxy(tmp_path) -> None:
+    base = TrainConfig(steps=50, samples_loss_from=7, image_size=96, pose_head="hierarchical")
+    configs = ablation_configs(base, tmp_path, "proxies")
+    assert list(configs) == list(PROXY_RUNS)
+    assert [c.image_proxy for c in configs.values()] == ["silhouette", "rgb", "edges"]
+    for config in configs.values():
+        assert (config.pose_head, config.samples_loss_from) == ("independent", -1)  # paper rows 1-3
+        assert config.network_config().input_channels == (20 if config.image_proxy == "rgb" else 18)
+        assert config.data_config().image_proxy == config.image_proxy
+    # Without the samples loss in the base the proxy study is still well defined.
+    assert len(ablation_configs(TrainConfig(samples_loss_from=-1), tmp_path, "proxies")) == 3
+    with pytest.raises(ValueError, match="unknown study"):
+        ablation_configs(base, tmp_path, "losses")
 
 
 def test_tiny_ablation_trains_exports_and_skips_finished_runs(tmp_path, capsys) -> None:

@@ -81,8 +81,8 @@ class RecordingNetwork(torch.nn.Module):
 
 def proxies_of(*people: np.ndarray, present: torch.Tensor | None = None) -> torch.Tensor:
     points = torch.as_tensor(np.stack(people), dtype=torch.float32)
-    edges = torch.zeros(len(people), SIZE, SIZE, dtype=torch.uint8)
-    edges[:, 30:34, 20:44] = 1  # a bar, to see the edge channel move with the copy
+    edges = torch.zeros(len(people), 1, SIZE, SIZE, dtype=torch.uint8)
+    edges[:, :, 30:34, 20:44] = 255  # a bar, to see the edge channel move with the copy
     if present is None:
         present = torch.ones(len(people), 17, dtype=torch.bool)
     return assemble_proxy(edges, points, present)

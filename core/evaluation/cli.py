@@ -135,7 +135,9 @@ def _network_and_test_generator(
     from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
 
     network, _ = load_network(checkpoint, device)
-    config = SyntheticDataConfig(image_size=int(network.config.image_size))
+    config = SyntheticDataConfig(
+        image_size=int(network.config.image_size), image_proxy=network.config.image_proxy
+    )
     if augmentation is not None:
         config = replace(config, augmentation=augmentation)
     if orientation is not None:
@@ -439,6 +441,11 @@ def occlusion_summary(
     network, generator = _network_and_test_generator(
         checkpoint, poses, device, AugmentationConfig.disabled()
     )
+    if network.config.image_proxy != "edges":
+        raise ValueError(
+            f"--occlusion-cases covers limbs in edge images; {checkpoint} reads "
+            f"{network.config.image_proxy!r} (evaluate it without --occlusion-cases)"
+        )
     scaled = ConcentrationScaled(network, concentration_scale)
     condition = None
     if evidence:

@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 import torch
 from tqdm import tqdm
@@ -39,12 +40,31 @@ class AnnotatedPerson:
         bbox: ``(x0, y0, x1, y1)`` annotated box, photo pixels.
         keypoints: ``(17, 2)`` human keypoints, photo pixels.
         visible: ``(17,)`` bool, COCO visibility flag 2.
+        outlines: the annotated person mask as polygons, each ``(N, 2)`` photo pixels (COCO
+            ``segmentation``); empty when the annotation has none.
+        image_size: ``(width, height)`` of the photo, pixels (0, 0 when not known).
     """
 
     image_path: Path
     bbox: np.ndarray
     keypoints: np.ndarray
     visible: np.ndarray
+    outlines: tuple[np.ndarray, ...] = ()
+    image_size: tuple[int, int] = (0, 0)
+
+    def silhouette(self) -> np.ndarray:
+        """``(H, W)`` bool: the annotated person mask, drawn from :attr:`outlines`.
+
+        Raises:
+            ValueError: the annotation has no polygon mask or no photo size.
+        """
+        width, height = self.image_size
+        if not self.outlines or width < 1 or height < 1:
+            raise ValueError(f"{self.image_path}: this person has no polygon mask")
+        mask = np.zeros((height, width), np.uint8)
+        polygons = [np.round(outline).astype(np.int32) for outline in self.outlines]
+        cv2.fillPoly(mask, polygons, 1)
+        return mask.astype(bool)
 
 
 def load_coco_people(
@@ -66,6 +86,8 @@ def load_coco_people(
         split = annotation_file.stem.removeprefix("person_keypoints_")
         data = json.loads(annotation_file.read_text())
         names = {image["id"]: image["file_name"] for image in data["images"]}
+        sizes = {image["id"]: (int(image.get("width", 0)), int(image.get("height", 0)))
+                 for image in data["images"]}  # fmt: skip
         for annotation in data["annotations"]:
             values = np.asarray(annotation["keypoints"], dtype=np.float64).reshape(17, 3)
             visible = values[:, 2] == 2
@@ -73,9 +95,15 @@ def load_coco_people(
             if annotation.get("iscrowd") or visible.sum() < min_visible or not path.is_file():
                 continue
             x, y, w, h = annotation["bbox"]
-            people.append(
-                AnnotatedPerson(path, np.array([x, y, x + w, y + h]), values[:, :2], visible)
+            polygons = annotation.get("segmentation")
+            outlines = tuple(
+                np.asarray(polygon, dtype=np.float64).reshape(-1, 2)
+                for polygon in (polygons if isinstance(polygons, list) else [])
+                if len(polygon) >= 6
             )
+            box = np.array([x, y, x + w, y + h])
+            size = sizes[annotation["image_id"]]
+            people.append(AnnotatedPerson(path, box, values[:, :2], visible, outlines, size))
     return people
 
 
@@ -103,6 +131,8 @@ def evaluate_photos(
         people: from :func:`load_coco_people`.
         num_samples: bodies sampled per person for the samples' error.
         evidence: score the keypoint-evidence posterior instead of the network's own.
+        A network that reads silhouettes (the proxy ablation's) gets each person's annotated
+        mask (:meth:`AnnotatedPerson.silhouette`); people without one count as failed.
         upright: let the network read people who lean more than 30° from an upright copy of
             the crop (``Predictor.predict``'s ``upright``; the predictor's default, off here so
             that the plain network is scored unless asked).
@@ -115,13 +145,16 @@ def evaluate_photos(
     """
     sums = {"mode": [], "samples": [], "mode_box": [], "samples_box": [], "detector": []}
     failed = 0
+    reads_silhouette = getattr(predictor, "image_proxy", "edges") == "silhouette"
     for person in tqdm(people, disable=not show_progress, unit="person"):
         margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
         search = person.bbox + np.array([-margin, -margin, margin, margin])
         try:
+            mask = {"silhouette": person.silhouette()} if reads_silhouette else {}
             posterior = predictor.predict(
-                person.image_path, bbox=search, evidence=evidence, upright=upright or evidence
-            )
+                person.image_path, bbox=search, evidence=evidence, upright=upright or evidence,
+                **mask,
+            )  # fmt: skip
         except (NoPersonFoundError, ImageInputError, ValueError):
             failed += 1
             continue

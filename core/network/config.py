@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
+from hkpd.proxy import DEFAULT_IMAGE_PROXY, proxy_channels
+
 POSE_HEADS = ("independent", "hierarchical")
 """Accepted values of :attr:`NetworkConfig.pose_head`."""
 
@@ -28,7 +30,11 @@ class NetworkConfig:
         joint_hidden: hidden widths of each joint's FC stream in the hierarchical head.
         num_betas: shape coefficients predicted (10 for SMPL-format bodies).
         image_size: side of the square proxy the network takes, pixels (256 normally).
-        input_channels: proxy channels (1 edge image + 17 joint heatmaps).
+        input_channels: proxy channels: the image proxy's (1 edge image) + 17 joint heatmaps;
+            must match ``image_proxy``.
+        image_proxy: what the network sees of the image (:data:`hkpd.proxy.IMAGE_PROXIES`):
+            ``"edges"`` (hkpd's and the paper's), or ``"silhouette"`` / ``"rgb"`` (the proxy
+            ablation's models; 18 or 20 input channels).
         initial_pose_concentration: at initialisation every joint's ``F`` is close to this
             multiple of the identity (see ``docs/network.md`` for the choice).
         initial_camera_scale: weak-perspective scale ``s`` at initialisation, NDC per metre.
@@ -48,6 +54,7 @@ class NetworkConfig:
     num_betas: int = 10
     image_size: int = 256
     input_channels: int = 18
+    image_proxy: str = DEFAULT_IMAGE_PROXY
     initial_pose_concentration: float = 1.0
     initial_camera_scale: float = 1.0
     initial_shape_std: float = 1.0
@@ -68,6 +75,11 @@ class NetworkConfig:
             raise ValueError("backbone_blocks and joint_hidden entries must be positive")
         if min(self.head_hidden, self.num_betas, self.input_channels) < 1:
             raise ValueError("head_hidden, num_betas and input_channels must be positive")
+        if self.input_channels != proxy_channels(self.image_proxy):  # also checks the name
+            raise ValueError(
+                f"the {self.image_proxy!r} proxy has {proxy_channels(self.image_proxy)} channels, "
+                f"but input_channels is {self.input_channels}"
+            )
         if self.image_size < 32:
             raise ValueError(f"image_size must be at least 32 pixels, got {self.image_size}")
         if self.initial_camera_scale <= 0 or self.initial_shape_std <= 0:

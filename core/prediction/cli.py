@@ -215,7 +215,14 @@ def load_predictor(model: str | None, device: str) -> Predictor:
     """The :class:`~hkpd.prediction.predictor.Predictor` (tests replace this function)."""
     from hkpd.prediction.predictor import Predictor
 
-    return Predictor.from_pretrained(model, device=device)
+    predictor = Predictor.from_pretrained(model, device=device)
+    if predictor.image_proxy == "silhouette":
+        predictor.close()
+        raise ValueError(
+            "this model reads person silhouettes (a proxy-ablation model) and hkpd-predict has "
+            "no person segmentation; use an edge model such as the shipped one"
+        )
+    return predictor
 
 
 @dataclass

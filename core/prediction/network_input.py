@@ -23,7 +23,7 @@ from hkpd.prediction.evidence_rule import evidence_mask
 from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
 from hkpd.prediction.keypoint_detector import KeypointDetection, KeypointDetector
 from hkpd.prediction.occluders import apply_occluders
-from hkpd.proxy import build_proxy
+from hkpd.proxy import DEFAULT_IMAGE_PROXY, build_proxy
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,6 +42,8 @@ class NetworkInput:
         detection: the detector's raw result on the unpainted photo (original-photo pixels,
             confidences untouched).
         image: the photo as loaded, occluders painted.
+        crop_silhouette: ``(S, S)`` bool person mask of the crop (occluders removed), for
+            networks that read a silhouette; None otherwise.
     """
 
     proxy: torch.Tensor
@@ -51,6 +53,7 @@ class NetworkInput:
     confidences: np.ndarray
     detection: KeypointDetection
     image: LoadedImage
+    crop_silhouette: np.ndarray | None = None
 
 
 def prepare_network_input(
@@ -61,6 +64,8 @@ def prepare_network_input(
     occluders: Sequence[Sequence[float]] | np.ndarray = (),
     max_side: int = MAX_IMAGE_SIDE,
     crop_size: int = CROP_SIZE,
+    image_proxy: str = DEFAULT_IMAGE_PROXY,
+    silhouette: np.ndarray | None = None,
 ) -> NetworkInput:
     """Load a photo, paint occluders, detect the person, crop, and build the proxy.
 
@@ -78,6 +83,11 @@ def prepare_network_input(
         occluders: ``(N, 4)`` black boxes, original-photo pixels.
         max_side: working-resolution cap passed to :func:`load_image`.
         crop_size: side of the crop and proxy in pixels (the network's input size).
+        image_proxy: the image part of the proxy (:data:`hkpd.proxy.IMAGE_PROXIES`; the
+            network's ``config.image_proxy``).
+        silhouette: ``(H, W)`` bool mask of the person at the photo's original resolution;
+            required by the ``"silhouette"`` proxy (e.g. a COCO person mask), ignored
+            otherwise. Occluders are removed from it.
 
     Returns:
         The :class:`NetworkInput`.
@@ -85,9 +95,12 @@ def prepare_network_input(
     Raises:
         ImageInputError: unreadable or unusable image.
         NoPersonFoundError: nobody found (in ``bbox``).
-        ValueError: malformed ``bbox`` or occluder boxes, or keypoints too degenerate to crop.
+        ValueError: malformed ``bbox`` or occluder boxes, keypoints too degenerate to crop, or
+            a silhouette proxy without a (well-sized) silhouette.
     """
     loaded = load_image(image, max_side=max_side)
+    if image_proxy == "silhouette":
+        silhouette = _checked_silhouette(silhouette, loaded)
     boxes = np.asarray(occluders, dtype=np.float64).reshape(-1, 4)
     detection = detector.detect(loaded, bbox=bbox)  # the unpainted photo (see the docstring)
     if boxes.size:
@@ -102,7 +115,12 @@ def prepare_network_input(
     )
     crop_rgb = crop.crop_image(loaded.pixels, loaded.scale)
     keypoints_crop = crop.image_to_crop(detection.keypoints)
-    proxy = build_proxy(crop_rgb, keypoints_crop, confidences)
+    crop_silhouette = None
+    if image_proxy == "silhouette":
+        if boxes.size:
+            silhouette = apply_occluders(silhouette, boxes)  # the photo's own pixels
+        crop_silhouette = crop.crop_image(silhouette.astype(np.uint8) * 255) >= 128
+    proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, crop_silhouette)
     return NetworkInput(
         proxy=proxy,
         crop=crop,
@@ -111,4 +129,22 @@ def prepare_network_input(
         confidences=confidences,
         detection=detection,
         image=loaded,
+        crop_silhouette=crop_silhouette,
     )
+
+
+def _checked_silhouette(silhouette: np.ndarray | None, loaded: LoadedImage) -> np.ndarray:
+    """``silhouette`` as an ``(H, W)`` bool array of the original photo's size, or a clear
+    ValueError."""
+    if silhouette is None:
+        raise ValueError(
+            "this network reads a person silhouette: pass silhouette=<(H, W) bool mask of the "
+            "person> (e.g. a COCO person mask or a segmentation of the photo)"
+        )
+    mask = np.asarray(silhouette)
+    width, height = loaded.original_size
+    if mask.shape != (height, width):
+        raise ValueError(
+            f"the silhouette must be ({height}, {width}) like the photo, got {mask.shape}"
+        )
+    return mask.astype(bool)

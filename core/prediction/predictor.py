@@ -85,6 +85,7 @@ class Predictor:
         self.body = (body or BodyModel()).to(self.device)
         self.detector = detector or KeypointDetector()
         self.crop_size = int(network.config.image_size)
+        self.image_proxy = str(network.config.image_proxy)
         self.evidence_config = evidence_config or EvidenceConfig()
         self._lock = threading.Lock()
         self._body64: BodyModel | None = None
@@ -111,6 +112,7 @@ class Predictor:
         bbox: Sequence[float] | np.ndarray | None = None,
         evidence: bool = True,
         upright: bool = True,
+        silhouette: np.ndarray | None = None,
     ) -> BodyPosterior:
         """The body posterior of the person in ``image``.
 
@@ -131,10 +133,14 @@ class Predictor:
                 the crop turned upright (``posterior.upright_tilt_degrees`` says by how much):
                 with ``evidence`` the fit starts from both answers, without it the upright
                 copy's answer is the network's posterior. False reads the crop as it is.
+            silhouette: ``(H, W)`` bool mask of the person, original-photo pixels: only for
+                networks that read a silhouette instead of edges (the proxy ablation's
+                ``network.config.image_proxy == "silhouette"``), which need one.
 
         Raises:
             ImageInputError: the image is missing, unreadable or unusable.
             NoPersonFoundError: nobody was found.
+            ValueError: a silhouette network without a silhouette of the photo's size.
         """
         with self._lock:
             prepared = prepare_network_input(
@@ -143,6 +149,8 @@ class Predictor:
                 bbox=bbox,
                 occluders=() if occluders is None else occluders,
                 crop_size=self.crop_size,
+                image_proxy=self.image_proxy,
+                silhouette=silhouette,
             )
             observed = prepared.confidences > 0
             tilt = torso_tilt(prepared.keypoints_crop, observed) if upright else None
@@ -154,13 +162,7 @@ class Predictor:
                 view = UprightView.from_tilt(
                     tilt, prepared.keypoints_crop, self.crop_size, observed
                 )
-                proxies.append(
-                    build_proxy(
-                        view.warp(prepared.crop_rgb),
-                        view.points(prepared.keypoints_crop),
-                        prepared.confidences,
-                    )
-                )
+                proxies.append(_upright_proxy(view, prepared, self.image_proxy))
             output = self.network(torch.stack(proxies).to(self.device))
             starts = _starts(output, view)
             if not evidence:  # the upright copy's reading when there is one
@@ -224,6 +226,21 @@ class Predictor:
     def close(self) -> None:
         """Release the detector's resources."""
         self.detector.close()
+
+
+def _upright_proxy(view: UprightView, prepared: NetworkInput, image_proxy: str) -> torch.Tensor:
+    """The ``(C + 17, S, S)`` proxy of the upright copy: the crop (and its silhouette) turned,
+    the image proxy found again on it, heatmaps drawn at the turned keypoints."""
+    silhouette = None
+    if prepared.crop_silhouette is not None:
+        silhouette = view.warp(prepared.crop_silhouette.astype(np.uint8) * 255) >= 128
+    return build_proxy(
+        view.warp(prepared.crop_rgb),
+        view.points(prepared.keypoints_crop),
+        prepared.confidences,
+        image_proxy,
+        silhouette,
+    )
 
 
 def _starts(output: NetworkOutput, view: UprightView | None) -> BodyEstimate:

@@ -3,9 +3,10 @@
 :class:`UprightReader` wraps a distribution network for inputs that are already proxies (the
 synthetic test sets, or anyone's own edges + heatmaps): for each example whose torso, read off
 its shoulder and hip heatmaps, leans more than a threshold from upright, the network reads a
-copy turned upright (:class:`hkpd.prediction.upright_view.UprightView`: the edge image warped,
-the heatmaps drawn again at the turned keypoints) and its global rotation and camera are mapped
-back to the original frame. Relative joint rotations and shape do not depend on the view.
+copy turned upright (:class:`hkpd.prediction.upright_view.UprightView`: the edge image (or
+whichever image proxy the network reads) warped, the heatmaps drawn again at the turned
+keypoints) and its global rotation and camera are mapped back to the original frame.
+Relative joint rotations and shape do not depend on the view.
 
 For photos, :meth:`hkpd.prediction.Predictor.predict` does the same from the RGB crop (edges
 are found again on the turned photo rather than warped).
@@ -19,10 +20,11 @@ from dataclasses import replace
 import numpy as np
 import torch
 
+from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.conditioning import EvidenceConfig
 from hkpd.network.output import NetworkOutput
 from hkpd.prediction.upright_view import UprightView, torso_tilt
-from hkpd.proxy import assemble_proxy
+from hkpd.proxy import assemble_proxy, proxy_image_planes
 from hkpd.proxy.heatmaps import heatmap_peaks
 
 UPRIGHT_READING_DEGREES = EvidenceConfig().upright_start_degrees
@@ -53,8 +55,9 @@ class UprightReader(torch.nn.Module):
         self.last_tilts_degrees = np.empty(0)
 
     def forward(self, proxy: torch.Tensor) -> NetworkOutput:
-        """The network's output for ``(B, 18, S, S)`` proxies, each in its own frame."""
-        keypoints, present = heatmap_peaks(proxy[:, 1:])
+        """The network's output for ``(B, C + 17, S, S)`` proxies, each in its own frame."""
+        heatmaps_from = proxy.shape[1] - len(COCO17_NAMES)
+        keypoints, present = heatmap_peaks(proxy[:, heatmaps_from:])
         points, observed = keypoints.cpu().double().numpy(), present.cpu().numpy()
         size = int(proxy.shape[-1])
         views: dict[int, UprightView] = {}
@@ -67,12 +70,12 @@ class UprightReader(torch.nn.Module):
         if not views:
             return self.network(proxy)
         turned = proxy.clone()
-        edges = proxy[:, 0].round().to(torch.uint8).cpu().numpy()
+        planes = proxy_image_planes(proxy).cpu().numpy()
         for index, view in views.items():
-            turned_edges = torch.from_numpy(view.warp_edges(edges[index]))
+            turned_planes = torch.from_numpy(view.warp_planes(planes[index]))
             turned_points = torch.as_tensor(view.points(points[index]), dtype=torch.float32)
             turned[index] = assemble_proxy(
-                turned_edges[None], turned_points[None], present[index, None].cpu()
+                turned_planes[None], turned_points[None], present[index, None].cpu()
             )[0].to(proxy.device)
         output = self.network(turned)
         orient, camera = output.global_orient.clone(), output.camera.clone()

@@ -138,15 +138,21 @@ class UprightView:
             borderMode=cv2.BORDER_CONSTANT,
         )
 
-    def warp_edges(self, edge_bits: np.ndarray) -> np.ndarray:
-        """The upright copy of a ``(S, S)`` edge image in {0, 1} (nearest pixel, so it stays
-        binary; outside the crop: no edges)."""
-        return cv2.warpAffine(
-            edge_bits,
-            self._pixel_affine(),
-            (self.size, self.size),
-            flags=cv2.INTER_NEAREST,
-            borderMode=cv2.BORDER_CONSTANT,
+    def warp_planes(self, image_planes: np.ndarray) -> np.ndarray:
+        """The upright copy of ``(C, S, S)`` uint8 image planes (:mod:`hkpd.proxy`'s compact
+        image proxy), nearest pixel so that edges and silhouettes stay binary; outside the
+        crop: 0."""
+        return np.stack(
+            [
+                cv2.warpAffine(
+                    np.ascontiguousarray(plane),
+                    self._pixel_affine(),
+                    (self.size, self.size),
+                    flags=cv2.INTER_NEAREST,
+                    borderMode=cv2.BORDER_CONSTANT,
+                )
+                for plane in image_planes
+            ]
         )
 
     def points(self, keypoints_crop: np.ndarray) -> np.ndarray:

@@ -48,8 +48,9 @@ class TrainingBatch(BatchTargets):
     """One batch of synthetic training examples: the network input plus :class:`BatchTargets`.
 
     Attributes:
-        proxy: ``(B, 18, 256, 256)`` float32: channel 0 the edge image in {0, 1}, channels 1-17
-            the COCO-17 joint heatmaps (zero where a joint was dropped).
+        proxy: ``(B, C + 17, 256, 256)`` float32: the image proxy's ``C`` channels (the edge
+            image in {0, 1} by default; :mod:`hkpd.proxy.representation`), then the COCO-17
+            joint heatmaps (zero where a joint was dropped).
         The others: as in :class:`BatchTargets`.
     """
 
@@ -74,18 +75,19 @@ class PackedBatch(BatchTargets):
     would have made in one process.
 
     Attributes:
-        edge_bits: ``(B, S, S)`` uint8 Canny edges in {0, 1}.
+        image_planes: ``(B, C, S, S)`` uint8 image proxy in [0, 255] (Canny edges as 0/255 by
+            default; :func:`hkpd.proxy.image_planes_batch`).
         input_keypoints: ``(B, 17, 2)`` the keypoints the heatmaps are drawn at (augmented).
         input_present: ``(B, 17)`` bool, which of them are drawn.
         The others: as in :class:`BatchTargets`.
     """
 
-    edge_bits: torch.Tensor
+    image_planes: torch.Tensor
     input_keypoints: torch.Tensor
     input_present: torch.Tensor
 
     def unpack(self, device: torch.device | str | None = None) -> TrainingBatch:
         """The training batch, its proxy drawn on ``device`` (default: the keypoints' device)."""
         device = self.input_keypoints.device if device is None else torch.device(device)
-        proxy = assemble_proxy(self.edge_bits, self.input_keypoints, self.input_present, device)
+        proxy = assemble_proxy(self.image_planes, self.input_keypoints, self.input_present, device)
         return TrainingBatch(proxy=proxy, **self.targets_on(device))

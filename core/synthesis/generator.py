@@ -17,7 +17,9 @@ One batch, step by step (settings from the paper's supplement):
    the image-space augmentations are applied (body-part erasing, an occluding box, half-image
    blanking) and keypoint visibility is decided (:mod:`hkpd.synthesis.visibility`).
 5. The input keypoints get the keypoint augmentations (left/right swap, removal, ±8 px noise);
-   the loss targets keep the exact ones. Edges and heatmaps form the proxy.
+   the loss targets keep the exact ones. Edges and heatmaps form the proxy (or, for the proxy
+   ablation, the body's silhouette minus what occluders hide, or the RGB image, instead of the
+   edges).
 
 Every random draw comes from one CPU ``torch.Generator`` seeded per batch, so a batch depends
 only on ``(seed, batch index)``: the same on CPU and CUDA, and a fixed test set is regenerated
@@ -42,7 +44,13 @@ from hkpd.camera_conventions import (
     perspective_project,
 )
 from hkpd.poses import PoseSource
-from hkpd.proxy import CROP_MARGIN, edge_bits_batch, square_box_around_keypoints
+from hkpd.proxy import (
+    CROP_MARGIN,
+    DEFAULT_IMAGE_PROXY,
+    image_planes_batch,
+    image_proxy_channels,
+    square_box_around_keypoints,
+)
 from hkpd.rendering import (
     BackgroundSource,
     ClothingTextureSampler,
@@ -76,6 +84,8 @@ class SyntheticDataConfig:
         augmentation: the supplement's augmentations.
         orientation: extra rolls and steep views (:mod:`hkpd.synthesis.orientation`); the
             default adds none (upright people, as in the paper).
+        image_proxy: the image part of the network input (:data:`hkpd.proxy.IMAGE_PROXIES`):
+            ``"edges"`` (hkpd's), or ``"silhouette"`` / ``"rgb"`` for the proxy ablation.
     """
 
     image_size: int = CROP_SIZE
@@ -83,6 +93,10 @@ class SyntheticDataConfig:
     max_camera_pitch_deg: float = 10.0
     augmentation: AugmentationConfig = field(default_factory=AugmentationConfig)
     orientation: OrientationMix = UPRIGHT
+    image_proxy: str = DEFAULT_IMAGE_PROXY
+
+    def __post_init__(self) -> None:
+        image_proxy_channels(self.image_proxy)  # raises on an unknown name
 
 
 @dataclass
@@ -258,8 +272,9 @@ class SyntheticDataGenerator:
 
         pixels = image.mul_(255.0).add_(0.5).clamp_(0.0, 255.0).to(torch.uint8)
         images = pixels.permute(0, 2, 3, 1).contiguous().cpu().numpy()  # contiguous rows for cv2
+        silhouettes = rendered.mask & ~occluded if config.image_proxy == "silhouette" else None
         packed = PackedBatch(
-            edge_bits=edge_bits_batch(images).to(device),
+            image_planes=image_planes_batch(images, config.image_proxy, silhouettes).to(device),
             input_keypoints=input_keypoints,
             input_present=input_present,
             body_pose=body_pose,

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from hkpd.network.config import NetworkConfig
 from hkpd.poses.mixed_source import PoseMix
+from hkpd.proxy import DEFAULT_IMAGE_PROXY, IMAGE_PROXIES, proxy_channels
 from hkpd.synthesis.augmentations import AugmentationConfig
 from hkpd.synthesis.generator import SyntheticDataConfig
 from hkpd.synthesis.orientation import OrientationMix
@@ -93,6 +94,10 @@ class TrainConfig:
             validation come on top), with a checkpoint that ``--resume`` continues, e.g. on a
             machine lent for a fixed time; None runs all ``steps``. The learning-rate schedule
             still follows ``steps``.
+        image_proxy: what the network sees of the image: ``edges`` (hkpd's and the paper's
+            choice), or ``silhouette`` / ``rgb`` (the proxy ablation;
+            :data:`hkpd.proxy.IMAGE_PROXIES`). A silhouette model needs a person mask for every
+            photo it reads.
     """
 
     out: Path = Path("runs/hkpd")
@@ -130,6 +135,7 @@ class TrainConfig:
     keypoint_noise_sigma: float = 0.0
     keypoint_outlier_probability: float = 0.0
     shape_from_nll_only: bool = False
+    image_proxy: str = DEFAULT_IMAGE_PROXY
 
     def validate(self) -> TrainConfig:
         """Check every field's range; returns ``self``.
@@ -174,6 +180,10 @@ class TrainConfig:
             raise ValueError(
                 f"--pose-head must be 'hierarchical' or 'independent', got {self.pose_head!r}"
             )
+        if self.image_proxy not in IMAGE_PROXIES:
+            raise ValueError(
+                f"--image-proxy must be one of {', '.join(IMAGE_PROXIES)}, got {self.image_proxy!r}"
+            )
         if not re.fullmatch(r"auto|cpu|cuda(:\d+)?|mps", self.device):
             raise ValueError(
                 f"--device must be auto, cpu, cuda, cuda:N or mps, got {self.device!r}"
@@ -187,6 +197,8 @@ class TrainConfig:
             pose_head=self.pose_head,
             image_size=self.image_size,
             concentration_gain=self.concentration_gain,
+            input_channels=proxy_channels(self.image_proxy),
+            image_proxy=self.image_proxy,
         )
 
     def data_config(self) -> SyntheticDataConfig:
@@ -202,7 +214,10 @@ class TrainConfig:
             steep_view_probability=self.steep_view_probability,
         )
         return SyntheticDataConfig(
-            image_size=self.image_size, augmentation=augmentation, orientation=orientation
+            image_size=self.image_size,
+            augmentation=augmentation,
+            orientation=orientation,
+            image_proxy=self.image_proxy,
         )
 
     def pose_mix(self) -> PoseMix:

@@ -53,8 +53,11 @@ def recentre_shape_mean(network: torch.nn.Module, proxies: torch.Tensor) -> torc
 def training_proxies(
     network: torch.nn.Module, poses: Path | None, count: int, seed: int
 ) -> torch.Tensor:
-    """``(count, 18, S, S)`` proxies of upright training-split crops at the network's size."""
-    config = SyntheticDataConfig(image_size=int(network.config.image_size))
+    """``(count, C + 17, S, S)`` proxies of upright training-split crops at the network's size
+    (and of its image proxy)."""
+    config = SyntheticDataConfig(
+        image_size=int(network.config.image_size), image_proxy=network.config.image_proxy
+    )
     generator = SyntheticDataGenerator(pose_source(poses, "train"), config)
     return generator.generate(count, seed).batch.proxy
 
