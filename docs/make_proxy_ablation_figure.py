@@ -6,7 +6,9 @@ image (a silhouette, the RGB crop, or the Canny edges; each with the 17 joint he
 synthetic test example (the training domain) and, below, the shipped CC0 photo (the real
 domain; a photo has no silhouette until something segments it). Right, the 2D error of each
 network's mode on the synthetic test set and on real photos (``coco_mini``, COCO's own person
-masks as the silhouettes): the synthetic-to-real gap per proxy.
+masks as the silhouettes): the synthetic-to-real gap per proxy. The printed table also scores
+each network with its image channels blanked (heatmaps only), which says how much it reads
+its image proxy in each domain.
 
     python docs/make_proxy_ablation_figure.py --poses poses.npz --coco ../shared/data/coco_mini
 """
@@ -24,13 +26,20 @@ import numpy as np
 import torch
 from PIL import Image
 
-from hkpd.evaluation.cli import evaluate_synthetic
+from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator, evaluate_synthetic
+from hkpd.evaluation.image_proxy_blanking import WithoutImageProxy
 from hkpd.evaluation.real_photos import evaluate_photos, load_coco_people
+from hkpd.evaluation.synthetic import evaluate_batches
 from hkpd.explorer.cli import shipped_photo
 from hkpd.poses import pose_source
 from hkpd.prediction import Predictor
 from hkpd.prediction.network_input import prepare_network_input
-from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator, batch_seed
+from hkpd.synthesis.generator import (
+    SyntheticDataConfig,
+    SyntheticDataGenerator,
+    batch_seed,
+    iter_fixed_test_set,
+)
 
 FIGURE = Path(__file__).parent / "figures" / "proxy_ablation.png"
 MODELS = Path(__file__).resolve().parents[1] / "assets" / "models" / "ablation"
@@ -38,6 +47,8 @@ PROXIES = {"silhouette": "silhouette", "rgb": "RGB", "edges": "edges"}
 """Image proxy -> label, in the paper's row order."""
 EXAMPLE_SEED, EXAMPLE_INDEX = 2021, 3
 """The synthetic example shown: item 3 of the first test batch."""
+SAMPLES = 25
+"""Bodies sampled per synthetic example (hkpd-eval's default)."""
 
 
 def _planes_picture(proxy: torch.Tensor) -> np.ndarray:
@@ -80,29 +91,66 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=FIGURE)
     args = parser.parse_args()
     torch.set_num_threads(1)
+    torch.set_grad_enabled(False)
     people = load_coco_people(args.coco)
-    rows, pictures = {}, {}
+    rows, pictures, person_errors = {}, {}, {}
     for proxy, label in PROXIES.items():
         checkpoint = args.models / f"proxy_{proxy}.pt"
         predictor = Predictor.from_pretrained(checkpoint, device="cpu")
-        synthetic = evaluate_synthetic(checkpoint, args.poses, args.count, 10, torch.device("cpu"))
-        photos = evaluate_photos(predictor, people, show_progress=False)
-        rows[label] = {"synthetic": synthetic, "photos": photos}
+        synthetic = evaluate_synthetic(
+            checkpoint, args.poses, args.count, SAMPLES, torch.device("cpu")
+        )
+        person_errors[label] = []
+        photos = evaluate_photos(
+            predictor, people, show_progress=False, mode_errors=person_errors[label]
+        )
+        network, generator = _network_and_test_generator(checkpoint, args.poses, "cpu")
+        blind = WithoutImageProxy(network.eval())
+        synthetic_blind = evaluate_batches(
+            blind, iter_fixed_test_set(generator, args.count, TEST_SET_SEED, 50),
+            generator.body, SAMPLES,
+        )  # fmt: skip
+        blind_predictor = Predictor(blind, "cpu", detector=predictor.detector)
+        photos_blind = evaluate_photos(blind_predictor, people, show_progress=False)
+        rows[label] = {
+            "synthetic": synthetic,
+            "photos": photos,
+            "synthetic_blind": synthetic_blind,
+            "photos_blind": photos_blind,
+        }
         pictures[label] = (
             _synthetic_example(args.poses, proxy, predictor.crop_size),
             _photo_input(predictor, shipped_photo()),
         )
         predictor.close()
-    print("| image proxy + heatmaps | synthetic: MPJPE-SC (mm) | PVE-T-SC (mm) | 2D mode (px) "
-          "| 2D samples (px) | coco_mini: 2D mode (px) | box fraction | people |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|")
+    print(
+        "| image proxy + heatmaps | MPJPE-SC (mm) | MPJPE-PA (mm) | PVE-T-SC (mm) | 2D mode (px) "
+        "| 2D samples (px) | coverage 50 / 90 | coco_mini: 2D mode (px) | box fraction | people "
+        "| image blanked: synthetic 2D mode (px) | coco_mini 2D mode (px) |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for label, row in rows.items():
         s, p = row["synthetic"], row["photos"]
         print(
-            f"| {label} | {s['mpjpe_sc']:.1f} | {s['pve_t_sc']:.1f} | "
+            f"| {label} | {s['mpjpe_sc']:.1f} | {s['mpjpe_pa']:.1f} | {s['pve_t_sc']:.1f} | "
             f"{s['joint_error_2d_mode']:.2f} | {s['joint_error_2d_samples']:.2f} | "
+            f"{s.get('pose_coverage_50', float('nan')):.2f} / "
+            f"{s.get('pose_coverage_90', float('nan')):.2f} | "
             f"{p['joint_error_2d_mode']:.1f} | {p['joint_error_2d_mode_box_fraction']:.3f} | "
-            f"{p['people']:.0f} |"
+            f"{p['people']:.0f} | {row['synthetic_blind']['joint_error_2d_mode']:.2f} | "
+            f"{row['photos_blind']['joint_error_2d_mode']:.1f} |"
+        )
+    edges = np.array(person_errors["edges"])
+    for label, errors in person_errors.items():
+        if label == "edges":
+            continue
+        difference = np.array(errors) - edges
+        difference = difference[np.isfinite(difference)]
+        standard_error = difference.std(ddof=1) / np.sqrt(difference.size)
+        print(
+            f"coco_mini, {label} minus edges, paired over {difference.size} people: "
+            f"{difference.mean():+.2f} px (standard error {standard_error:.2f}), "
+            f"worse for {(difference > 0).sum()} of them"
         )
 
     figure = plt.figure(figsize=(11.5, 4.4), dpi=110)

@@ -95,8 +95,12 @@ def test_coco_person_masks_become_silhouettes_for_silhouette_networks(tmp_path) 
             seen.append(silhouette)
             raise ValueError("stop here")
 
-    result = evaluate_photos(SilhouettePredictor(), [person], show_progress=False)
+    per_person = []
+    result = evaluate_photos(
+        SilhouettePredictor(), [person], show_progress=False, mode_errors=per_person
+    )
     assert result["failed"] == 1 and seen[0] is not None and (seen[0] == mask).all()
+    assert len(per_person) == 1 and np.isnan(per_person[0])
 
 
 def test_occlusion_response_runs_and_covers_the_limb() -> None:
@@ -170,8 +174,12 @@ def test_photo_errors_score_the_prediction_and_the_detector_input() -> None:
         "Predictor", (), {"predict": lambda self, path, bbox, evidence, upright: posterior}
     )()
     posterior = _FixedPosterior(person, shift_px=4.0)
-    result = evaluate_photos(predictor, [person], num_samples=3, show_progress=False)
+    per_person = []
+    result = evaluate_photos(
+        predictor, [person], num_samples=3, show_progress=False, mode_errors=per_person
+    )
     assert result["people"] == 1 and result["failed"] == 0
+    assert per_person == [pytest.approx(result["joint_error_2d_mode"])]
     assert abs(result["joint_error_2d_mode"] - 8.0 * 256 / 512) < 1e-4
     assert abs(result["joint_error_2d_samples"] - 8.0 * 256 / 512) < 1e-4
     assert abs(result["joint_error_2d_mode_box_fraction"] - 8.0 / 400) < 1e-6
@@ -267,3 +275,23 @@ def test_eval_scores_the_upright_reading_on_each_split(tmp_path) -> None:
         values[f"{checkpoint} (any orientation)"]
         != values[f"{checkpoint} (any orientation) (upright reading)"]
     )
+
+
+def test_without_image_proxy_blanks_only_the_image_channels() -> None:
+    from hkpd.evaluation.image_proxy_blanking import WithoutImageProxy
+
+    seen = []
+
+    class Recorder(torch.nn.Module):
+        config = NetworkConfig(image_proxy="rgb", input_channels=20)
+
+        def forward(self, proxy):
+            seen.append(proxy)
+            return "output"
+
+    proxy = torch.rand(2, 20, 8, 8)
+    wrapped = WithoutImageProxy(Recorder())
+    assert wrapped(proxy) == "output" and wrapped.config.image_proxy == "rgb"
+    assert (seen[0][:, :3] == 0).all()
+    torch.testing.assert_close(seen[0][:, 3:], proxy[:, 3:])
+    assert (proxy[:, :3] > 0).any()  # the caller's input is untouched

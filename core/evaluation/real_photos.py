@@ -123,6 +123,7 @@ def _errors(
 def evaluate_photos(
     predictor, people: list[AnnotatedPerson], num_samples: int = 10, seed: int = 0,
     show_progress: bool = True, evidence: bool = False, upright: bool = False,
+    mode_errors: list[float] | None = None,
 ) -> dict[str, float]:  # fmt: skip
     """Mean 2D errors of the mode and of samples over ``people``.
 
@@ -157,12 +158,16 @@ def evaluate_photos(
             )  # fmt: skip
         except (NoPersonFoundError, ImageInputError, ValueError):
             failed += 1
+            if mode_errors is not None:
+                mode_errors.append(math.nan)
             continue
         to_256 = CROP_SIZE / posterior.crop.side
         box_side = float((person.bbox[2:] - person.bbox[:2]).max())
         mode = _errors(posterior.mode().keypoints2d, person)[0]
         samples = _errors(posterior.sample(num_samples, seed).keypoints2d, person).mean()
         sums["mode"].append(mode * to_256)
+        if mode_errors is not None:
+            mode_errors.append(float(mode * to_256))
         sums["samples"].append(samples * to_256)
         sums["mode_box"].append(mode / box_side)
         sums["samples_box"].append(samples / box_side)
