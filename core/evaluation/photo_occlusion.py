@@ -49,7 +49,8 @@ def photo_occlusion_response(
     """Median covered-limb ratio and the other limbs' median relative change.
 
     Args:
-        predictor: a :class:`hkpd.prediction.Predictor`.
+        predictor: a :class:`hkpd.prediction.Predictor` (a silhouette network gets each
+            person's annotated mask, the box cleared from it).
         people: annotated people (:func:`hkpd.evaluation.real_photos.load_coco_people`).
         evidence: score the evidence posterior (else the network's own).
         samples: meshes per uncertainty.
@@ -61,11 +62,13 @@ def photo_occlusion_response(
     masks = limb_vertex_masks(predictor.body)
     ratios: list[float] = []
     others: list[float] = []
+    reads_silhouette = getattr(predictor, "image_proxy", "edges") == "silhouette"
     for person in tqdm(people, disable=not show_progress, unit="person"):
         margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
         search = person.bbox + np.array([-margin, -margin, margin, margin])
         try:
-            clean = predictor.predict(person.image_path, bbox=search, evidence=evidence)
+            mask = {"silhouette": person.silhouette()} if reads_silhouette else {}
+            clean = predictor.predict(person.image_path, bbox=search, evidence=evidence, **mask)
         except (NoPersonFoundError, ImageInputError, ValueError):
             continue
         clean_u = clean.vertex_uncertainty(samples)
@@ -75,7 +78,7 @@ def photo_occlusion_response(
                 continue
             try:
                 covered = predictor.predict(
-                    person.image_path, occluders=[box], bbox=search, evidence=evidence
+                    person.image_path, occluders=[box], bbox=search, evidence=evidence, **mask
                 )
             except (NoPersonFoundError, ImageInputError, ValueError):
                 continue
