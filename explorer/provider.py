@@ -76,14 +76,10 @@ class PredictorProvider:
 
     def __init__(self, path: str | Path | None = None, device: str = "auto") -> None:
         from hkpd.prediction import Predictor
+        from hkpd.prediction.predictor import refuse_silhouette_model
 
         self.predictor: Predictor = Predictor.from_pretrained(path, device=device)
-        if self.predictor.image_proxy == "silhouette":
-            self.predictor.close()
-            raise ValueError(
-                f"{path} reads person silhouettes (a proxy-ablation model) and the explorer "
-                "has no person segmentation; use an edge model such as the shipped one"
-            )
+        refuse_silhouette_model(self.predictor, "the explorer")
 
     def predict(
         self,

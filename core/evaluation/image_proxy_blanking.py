@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import torch
 
-from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.network.output import NetworkOutput
+from hkpd.proxy import NUM_KEYPOINTS
 
 
 class WithoutImageProxy(torch.nn.Module):
@@ -32,5 +32,5 @@ class WithoutImageProxy(torch.nn.Module):
         """The network's output for ``(B, C + 17, S, S)`` proxies whose first ``C`` channels
         are set to zero (the caller's tensor is left as it is)."""
         blanked = proxy.clone()
-        blanked[:, : proxy.shape[1] - len(COCO17_NAMES)] = 0.0
+        blanked[:, : proxy.shape[1] - NUM_KEYPOINTS] = 0.0
         return self.network(blanked)

@@ -12,7 +12,7 @@ import numpy as np
 from tqdm import tqdm
 
 from hkpd.evaluation.occlusion_response import OCCLUDED_LIMBS, limb_vertex_masks
-from hkpd.evaluation.real_photos import AnnotatedPerson
+from hkpd.evaluation.real_photos import AnnotatedPerson, silhouette_argument
 from hkpd.prediction.image_input import ImageInputError
 from hkpd.prediction.keypoint_detector import NoPersonFoundError
 
@@ -62,12 +62,11 @@ def photo_occlusion_response(
     masks = limb_vertex_masks(predictor.body)
     ratios: list[float] = []
     others: list[float] = []
-    reads_silhouette = getattr(predictor, "image_proxy", "edges") == "silhouette"
     for person in tqdm(people, disable=not show_progress, unit="person"):
         margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
         search = person.bbox + np.array([-margin, -margin, margin, margin])
         try:
-            mask = {"silhouette": person.silhouette()} if reads_silhouette else {}
+            mask = silhouette_argument(predictor, person)
             clean = predictor.predict(person.image_path, bbox=search, evidence=evidence, **mask)
         except (NoPersonFoundError, ImageInputError, ValueError):
             continue

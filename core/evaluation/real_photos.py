@@ -67,6 +67,18 @@ class AnnotatedPerson:
         return mask.astype(bool)
 
 
+def silhouette_argument(predictor, person: AnnotatedPerson) -> dict[str, np.ndarray]:
+    """``predict``'s keyword arguments for ``person``'s mask: ``{"silhouette": mask}`` for a
+    predictor whose network reads silhouettes, else none.
+
+    Raises:
+        ValueError: a silhouette network and a person without a polygon mask.
+    """
+    if getattr(predictor, "image_proxy", "edges") != "silhouette":
+        return {}
+    return {"silhouette": person.silhouette()}
+
+
 def load_coco_people(
     coco_dir: Path, min_visible: int = MIN_VISIBLE_KEYPOINTS
 ) -> list[AnnotatedPerson]:
@@ -146,12 +158,11 @@ def evaluate_photos(
     """
     sums = {"mode": [], "samples": [], "mode_box": [], "samples_box": [], "detector": []}
     failed = 0
-    reads_silhouette = getattr(predictor, "image_proxy", "edges") == "silhouette"
     for person in tqdm(people, disable=not show_progress, unit="person"):
         margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
         search = person.bbox + np.array([-margin, -margin, margin, margin])
         try:
-            mask = {"silhouette": person.silhouette()} if reads_silhouette else {}
+            mask = silhouette_argument(predictor, person)
             posterior = predictor.predict(
                 person.image_path, bbox=search, evidence=evidence, upright=upright or evidence,
                 **mask,

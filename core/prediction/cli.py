@@ -213,15 +213,10 @@ def output_names(images: Sequence[Path]) -> list[str]:
 
 def load_predictor(model: str | None, device: str) -> Predictor:
     """The :class:`~hkpd.prediction.predictor.Predictor` (tests replace this function)."""
-    from hkpd.prediction.predictor import Predictor
+    from hkpd.prediction.predictor import Predictor, refuse_silhouette_model
 
     predictor = Predictor.from_pretrained(model, device=device)
-    if predictor.image_proxy == "silhouette":
-        predictor.close()
-        raise ValueError(
-            "this model reads person silhouettes (a proxy-ablation model) and hkpd-predict has "
-            "no person segmentation; use an edge model such as the shipped one"
-        )
+    refuse_silhouette_model(predictor, PROG)
     return predictor
 
 

@@ -228,6 +228,17 @@ class Predictor:
         self.detector.close()
 
 
+def refuse_silhouette_model(predictor: Predictor, tool: str) -> None:
+    """Close ``predictor`` and raise a ValueError when its network reads person silhouettes
+    (a proxy-ablation model), which ``tool`` cannot give it: hkpd has no person segmentation."""
+    if predictor.image_proxy == "silhouette":
+        predictor.close()
+        raise ValueError(
+            f"this model reads person silhouettes (a proxy-ablation model) and {tool} has no "
+            "person segmentation; use an edge model such as the shipped one"
+        )
+
+
 def _upright_proxy(view: UprightView, prepared: NetworkInput, image_proxy: str) -> torch.Tensor:
     """The ``(C + 17, S, S)`` proxy of the upright copy: the crop (and its silhouette) turned,
     the image proxy found again on it, heatmaps drawn at the turned keypoints."""

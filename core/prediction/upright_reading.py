@@ -20,11 +20,10 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.conditioning import EvidenceConfig
 from hkpd.network.output import NetworkOutput
 from hkpd.prediction.upright_view import UprightView, torso_tilt
-from hkpd.proxy import assemble_proxy, proxy_image_planes
+from hkpd.proxy import NUM_KEYPOINTS, assemble_proxy, proxy_image_planes
 from hkpd.proxy.heatmaps import heatmap_peaks
 
 UPRIGHT_READING_DEGREES = EvidenceConfig().upright_start_degrees
@@ -56,7 +55,7 @@ class UprightReader(torch.nn.Module):
 
     def forward(self, proxy: torch.Tensor) -> NetworkOutput:
         """The network's output for ``(B, C + 17, S, S)`` proxies, each in its own frame."""
-        heatmaps_from = proxy.shape[1] - len(COCO17_NAMES)
+        heatmaps_from = proxy.shape[1] - NUM_KEYPOINTS
         keypoints, present = heatmap_peaks(proxy[:, heatmaps_from:])
         points, observed = keypoints.cpu().double().numpy(), present.cpu().numpy()
         size = int(proxy.shape[-1])
