@@ -194,3 +194,24 @@ def test_mixed_precision_outputs_are_full_precision(network):
         assert torch.isfinite(value).all(), name
     output.F.sum().backward()
     assert network.backbone.stem[0].weight.grad is not None
+
+
+def test_detached_shape_input_keeps_pose_losses_off_the_shape_outputs():
+    torch.manual_seed(0)
+    network = DistributionNetwork(NetworkConfig(backbone_base_width=8, image_size=32))
+    proxies = torch.rand(3, 18, 32, 32)
+    num_betas = network.config.num_betas
+
+    def shape_row_gradient() -> tuple[torch.Tensor, float]:
+        network.zero_grad(set_to_none=True)
+        output = network(proxies)
+        output.F.square().sum().backward()  # a loss on the pose only
+        rows = network.head.globals_out.weight.grad[: 2 * num_betas]  # shape mean and std
+        return output.F.detach(), float(rows.abs().sum())
+
+    coupled_F, coupled = shape_row_gradient()
+    network.head.detach_shape_input = True
+    detached_F, detached = shape_row_gradient()
+    assert coupled > 0.0  # the paper's head trains the shape outputs through the joint streams
+    assert detached == 0.0
+    torch.testing.assert_close(detached_F, coupled_F)  # same values, other gradients

@@ -15,7 +15,7 @@ from hkpd.training.cli import build_parser
 from hkpd.training.cli import main as train_main
 from hkpd.training.config import TrainConfig, learning_rate_at
 from hkpd.training.csv_logs import append_row
-from hkpd.training.loop import build_schedule, train
+from hkpd.training.loop import build_schedule, build_training, train
 from hkpd.training.schedule import LossWeights
 
 TINY = {
@@ -198,3 +198,10 @@ def test_max_minutes_stops_with_a_checkpoint_that_resume_continues(tmp_path, cap
     assert "stopped at --max-minutes 1e-06" in capsys.readouterr().out
     assert train_main(["--out", out, "--max-minutes", "0"]) == 2
     assert "--max-minutes must be a finite number > 0" in capsys.readouterr().err
+
+
+def test_shape_from_nll_only_also_detaches_the_pose_streams_shape_input(tmp_path) -> None:
+    plain = build_training(TrainConfig(out=tmp_path / "a", **TINY))
+    assert not plain.network.head.detach_shape_input
+    alone = build_training(TrainConfig(out=tmp_path / "b", shape_from_nll_only=True, **TINY))
+    assert alone.network.head.detach_shape_input

@@ -102,6 +102,12 @@ class HierarchicalHead(nn.Module):
             the decoded outputs (see :class:`hkpd.network.NetworkConfig`).
         concentration_gain: give each joint stream a log-gain output (see
             :func:`hkpd.network.output_decoding.decode_pose`).
+
+    Attributes:
+        detach_shape_input: feed the joint streams the shape mean and std *detached* (same
+            values, no gradient), so that losses on the pose cannot move the shape outputs
+            through the streams' inputs; set by training with ``--shape-from-nll-only``.
+            Off by default (the paper's f_hier trains both through this path).
     """
 
     def __init__(
@@ -121,6 +127,7 @@ class HierarchicalHead(nn.Module):
         self.num_betas = num_betas
         self.num_joints = len(self.parents)
         self.concentration = initial_pose_concentration
+        self.detach_shape_input = False
         self.levels: tuple[tuple[int, ...], ...] = tuple(
             tuple(level) for level in depth_levels(self.parents)
         )
@@ -157,7 +164,8 @@ class HierarchicalHead(nn.Module):
         """Like :meth:`forward`; ``edit`` (tests only) may replace each level's ``F``."""
         embedding = self.trunk(features)
         mean, std, orient, camera = decode_globals(self.globals_out(embedding), self.num_betas)
-        shared = torch.cat((embedding, mean, std, orient.flatten(-2), camera), dim=-1)
+        mean_in, std_in = (mean.detach(), std.detach()) if self.detach_shape_input else (mean, std)
+        shared = torch.cat((embedding, mean_in, std_in, orient.flatten(-2), camera), dim=-1)
         return NetworkOutput(self.pose_parameters(shared, edit), mean, std, orient, camera)
 
     def pose_parameters(self, shared: torch.Tensor, edit: LevelEdit | None = None) -> torch.Tensor:

@@ -88,8 +88,11 @@ class TrainConfig:
             keypoints replaced by outliers (up to 20 % of the crop away).
         shape_from_nll_only: only the shape NLL trains the shape head: the 2D and 3D joint
             losses pose their bodies with the predicted shape detached
-            (:func:`hkpd.training.losses.compute_losses`). Without it, on hard views (rolled,
-            noisy keypoints) the samples loss bends the shape to absorb pose errors.
+            (:func:`hkpd.training.losses.compute_losses`), and the hierarchical head's joint
+            streams read the shape outputs detached
+            (:attr:`hkpd.network.HierarchicalHead.detach_shape_input`), so no pose loss reaches
+            the shape head through them either. Without it, on hard views (rolled, noisy
+            keypoints) the samples loss bends the shape to absorb pose errors.
         max_minutes: stop after this many minutes of training steps (setup and the final
             validation come on top), with a checkpoint that ``--resume`` continues, e.g. on a
             machine lent for a fixed time; None runs all ``steps``. The learning-rate schedule

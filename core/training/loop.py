@@ -197,6 +197,8 @@ def build_training(config: TrainConfig, resume: bool = False) -> TrainingSetup:
     config.save(out / "config.json")
     torch.manual_seed(config.seed)
     network = DistributionNetwork(network_config).to(device)
+    if config.shape_from_nll_only and hasattr(network.head, "detach_shape_input"):
+        network.head.detach_shape_input = True  # the pose streams' shape inputs too
     if config.init_weights is not None and not resume:
         load_initial_weights(network, config.init_weights, device)
     setup = TrainingSetup(
