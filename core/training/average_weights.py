@@ -5,7 +5,8 @@ their mean often sits closer to it than any one of them. Batch-norm running stat
 averaged like the weights (a fair approximation when the checkpoints are close, i.e. from the
 low-rate tail of one run); integer buffers (batch counters) are taken from the last file.
 
-Usage: ``python -m hkpd.training.average_weights runs/x/step_*.pt --out runs/x/averaged.pt``
+Usage: ``python -m hkpd.training.average_weights a.pt b.pt c.pt --out averaged.pt``, with copies
+of a run's ``last.pt`` taken at several steps (``hkpd-train`` keeps only the latest).
 """
 
 from __future__ import annotations
