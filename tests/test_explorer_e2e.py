@@ -74,6 +74,30 @@ def camera_ready(app) -> bool:
     return True
 
 
+def camera_settled(app, quiet_s: float = 3.0, timeout: float = 30.0) -> None:
+    """Wait until the browser's camera, as the server knows it, has not changed for ``quiet_s``.
+
+    The app frames the camera when a tab connects and again after the first prediction. The
+    browser answers each move with its camera a frame later (about 1 s with software WebGL),
+    and a report it sent before a move can land after it; reading the camera earlier maps
+    photo pixels to the wrong canvas pixels, and a box drawn there misses its target."""
+
+    def reading() -> tuple:
+        camera = next(iter(app.server.get_clients().values())).camera
+        return (*camera.position, *camera.wxyz, camera.fov, camera.image_width,
+                camera.image_height)  # fmt: skip
+
+    deadline = time.monotonic() + timeout
+    last, quiet_since = reading(), time.monotonic()
+    while time.monotonic() - quiet_since < quiet_s:
+        if time.monotonic() > deadline:
+            raise AssertionError(f"the browser's camera kept moving for {timeout:.0f} s")
+        time.sleep(0.1)
+        now = reading()
+        if now != last:
+            last, quiet_since = now, time.monotonic()
+
+
 def photo_to_canvas(app, pixels: np.ndarray) -> np.ndarray:
     """Photo pixels ``(N, 2)`` to canvas pixels, through the browser's current camera."""
     placement = app.scene.placement
@@ -154,8 +178,7 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         wait_for(lambda: len(app.server.get_clients()) == 1, what="second tab closed")
         wait_for(lambda: camera_ready(app) and app.view is not None, what="first view")
         assert app.wait_idle(30)
-        # The camera is framed after the first prediction; let the browser apply it.
-        time.sleep(1.0)
+        camera_settled(app)  # framed after the first prediction: let the browser apply it
         close = page.locator(".mantine-Notification-closeButton")
         for index in range(close.count()):
             close.nth(index).click()

@@ -24,6 +24,7 @@ from test_explorer_e2e import (
     FIGURE,
     VIEWPORT,
     camera_ready,
+    camera_settled,
     launch_chromium,
     photo_to_canvas,
     playwright_api,
@@ -64,7 +65,7 @@ def test_shipped_model_on_the_shipped_photo(app, tmp_path):
         page.wait_for_function(CANVAS_SHOWN, timeout=60_000)
         wait_for(lambda: camera_ready(app) and app.view is not None, what="first view")
         assert app.wait_idle(60)
-        time.sleep(1.0)
+        camera_settled(app)  # framed after the first prediction: let the browser apply it
         posterior = app.result.posterior
         assert posterior.source == "evidence", posterior.fallback_reason
         assert "/photo/fit" in app.server.scene._handle_from_node_name  # the fit overlay
@@ -78,6 +79,8 @@ def test_shipped_model_on_the_shipped_photo(app, tmp_path):
         first = app.result
         shift_drag(page, corners[0], corners[1])
         wait_for(lambda: len(app.state.snapshot().occluders) == 1, what="the occluder")
+        drawn = app.state.snapshot().occluders[0].box
+        np.testing.assert_allclose(drawn, [*low, *high], atol=4.0, err_msg="box drawn elsewhere")
         wait_for(lambda: app.result is not first, timeout=60, what="the new prediction")
         assert app.wait_idle(60)
         covered = app.result.posterior
