@@ -54,3 +54,33 @@ def test_mismatched_shapes_are_refused(parameters):
     samples = draw(parameters, 4, 0)
     with pytest.raises(ValueError, match="samples"):
         truth_rank(parameters, samples[:, :3], parameters)
+
+
+def test_point_ranks_are_calibrated_when_the_truth_is_drawn_like_the_samples() -> None:
+    from hkpd.evaluation.calibration import calibrated_coverage, point_truth_rank
+
+    torch.manual_seed(3)
+    mode = torch.randn(4000, 17, 2) * 50
+    spread = torch.rand(4000, 17, 1) * 10 + 1
+    samples = mode + spread * torch.randn(25, 4000, 17, 2)
+    truth = mode + spread * torch.randn(4000, 17, 2)
+    ranks = point_truth_rank(mode, samples, truth)
+    assert ranks.shape == (4000, 17)
+    for level in (0.5, 0.9):
+        share = (ranks < level).double().mean().item()
+        assert abs(share - calibrated_coverage(level, 25)) < 0.01
+    # samples twice too narrow: the truth falls outside the 90 % disc far more often
+    narrow = point_truth_rank(mode, mode + 0.5 * (samples - mode), truth)
+    assert (narrow < 0.9).double().mean().item() < 0.6
+    with pytest.raises(ValueError, match="expected mode"):
+        point_truth_rank(mode, samples[:, :, :3], truth)
+
+
+def test_calibrated_coverage_counts_the_finite_samples() -> None:
+    from hkpd.evaluation.calibration import calibrated_coverage
+
+    assert calibrated_coverage(0.5, 25) == 0.5
+    assert calibrated_coverage(0.9, 25) == pytest.approx(23 / 26)
+    assert calibrated_coverage(0.5, 10) == pytest.approx(5 / 11)
+    with pytest.raises(ValueError):
+        calibrated_coverage(1.0, 25)

@@ -184,6 +184,11 @@ def test_photo_errors_score_the_prediction_and_the_detector_input() -> None:
     assert abs(result["joint_error_2d_samples"] - 8.0 * 256 / 512) < 1e-4
     assert abs(result["joint_error_2d_mode_box_fraction"] - 8.0 / 400) < 1e-6
     assert abs(result["joint_error_2d_detector"] - 4.0 * 256 / 512) < 1e-4
+    # every sample sits on the mode, 8 px from the annotations: no annotated keypoint is covered
+    assert result["keypoint_coverage_2d_50"] == result["keypoint_coverage_2d_90"] == 0.0
+    posterior = _FixedPosterior(person, shift_px=0.0)
+    exact = evaluate_photos(predictor, [person], num_samples=3, show_progress=False)
+    assert exact["keypoint_coverage_2d_90"] == 1.0
 
 
 def test_concentration_scaling_scales_F_and_keeps_the_mode() -> None:

@@ -79,7 +79,11 @@ def test_every_setting_gets_a_row_that_depends_on_it(tmp_path, capsys) -> None:
         name: [float(cell) for cell in line.strip(" |").split(" | ")[1:]]
         for name, line in rows.items()
     }
-    assert all(math.isfinite(v) and v > 0 for row in values.values() for v in row)
+    assert all(math.isfinite(v) and v >= 0 for row in values.values() for v in row)
+    photo_coverage = [header.split(" | ").index(f"photos: 2D coverage {q} %") for q in (50, 90)]
+    for row in values.values():  # shares, the 90 % disc holding at least what the 50 % one does
+        low, high = (row[column - 1] for column in photo_coverage)
+        assert 0.0 <= low <= high <= 1.0
     sharp, loose = (
         values["w 0.05, sigma 0.02, robust 3, conditional"],
         values["w 1, sigma 0.06, robust 3, conditional"],

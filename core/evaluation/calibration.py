@@ -12,6 +12,7 @@ near 1 (the truth is less probable than most samples), an under-confident one's 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import torch
@@ -70,3 +71,40 @@ def rotation_coverage(
     """
     ranks = truth_rank(F, samples, truth)
     return {level: (ranks < level).to(F.dtype).mean(-1) for level in levels}
+
+
+def point_truth_rank(
+    mode: torch.Tensor, samples: torch.Tensor, truth: torch.Tensor
+) -> torch.Tensor:
+    """Share of samples closer to the mode than the true point, per point (2D keypoints).
+
+    The regions are discs about the mode, so the rank needs no density: a point drawn from the
+    predicted distribution is as likely to be the k-th nearest to the mode as any sample, and a
+    calibrated prediction's ranks are uniform, as for :func:`truth_rank`. Used on real photos,
+    where the truth is an annotated keypoint and only the body's projection is predicted.
+
+    Args:
+        mode: ``(..., P, 2)`` the most likely body's projected points (pixels).
+        samples: ``(S, ..., P, 2)`` the sampled bodies' projected points.
+        truth: ``(..., P, 2)`` the true points.
+
+    Returns:
+        ``(..., P)`` ranks in [0, 1], resolution ``1 / S``.
+    """
+    if samples.shape[1:] != mode.shape or truth.shape != mode.shape or mode.shape[-1] != 2:
+        raise ValueError(
+            f"expected mode (..., P, 2), samples (S, ..., P, 2) and truth like mode, got "
+            f"{tuple(mode.shape)}, {tuple(samples.shape)} and {tuple(truth.shape)}"
+        )
+    truth_distance = (truth - mode).norm(dim=-1)
+    sample_distance = (samples - mode.unsqueeze(0)).norm(dim=-1)
+    return (sample_distance < truth_distance.unsqueeze(0)).to(mode.dtype).mean(0)
+
+
+def calibrated_coverage(level: float, num_samples: int) -> float:
+    """The coverage a calibrated prediction averages when ranks have ``num_samples`` samples:
+    the truth is inside the ``level`` region when fewer than ``level × S`` samples beat it, which
+    happens with probability ``(⌈level × S⌉) / (S + 1)`` (25 samples: 0.5 and 0.885)."""
+    if num_samples < 1 or not 0.0 < level < 1.0:
+        raise ValueError(f"need num_samples >= 1 and 0 < level < 1, got {num_samples}, {level}")
+    return math.ceil(level * num_samples - 1e-9) / (num_samples + 1)

@@ -13,6 +13,9 @@ subjects). Each setting gets one row:
   scatter; 1 means they all sit on the mode);
 - ``covered limb``: median uncertainty ratio of a forearm or lower leg covered by a box on the
   photos (:func:`photo_occlusion_response`; it should rise well above 1);
+- ``photos: 2D coverage 50 / 90``: share of the photos' annotated keypoints inside the disc
+  about the mode's projection that holds 50 % / 90 % of 25 samples' projections (calibrated:
+  0.50 / 0.885; below that the drawn samples claim more certainty than the photos bear out);
 - ``coverage 50 / 90``: share of true joint rotations inside the posterior's 50 % / 90 %
   regions on synthetic validation images with detector-like keypoint noise (calibrated:
   0.50 / 0.885 at 25 samples), and the synthetic mode error.
@@ -56,6 +59,8 @@ TUNING_COLUMNS = {
     "mode_over_detector": "photos: mode / detector",
     "samples_over_mode": "photos: samples / mode",
     "covered_limb_ratio": "photos: covered limb ratio (median)",
+    "photo_coverage_50": "photos: 2D coverage 50 %",
+    "photo_coverage_90": "photos: 2D coverage 90 %",
     "coverage_50": "synthetic val: coverage 50 %",
     "coverage_90": "synthetic val: coverage 90 %",
     "synthetic_mode_px": "synthetic val: mode (px)",
@@ -143,6 +148,8 @@ def score_setting(
         "mode_over_detector": mode / photos["joint_error_2d_detector"],
         "samples_over_mode": photos["joint_error_2d_samples"] / mode,
         "covered_limb_ratio": occlusion.get("occlusion_ratio_median", math.nan),
+        "photo_coverage_50": photos["keypoint_coverage_2d_50"],
+        "photo_coverage_90": photos["keypoint_coverage_2d_90"],
         "coverage_50": synthetic["pose_coverage_50"],
         "coverage_90": synthetic["pose_coverage_90"],
         "synthetic_mode_px": synthetic["joint_error_2d_mode"],

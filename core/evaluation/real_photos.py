@@ -23,6 +23,7 @@ import torch
 from tqdm import tqdm
 
 from hkpd.camera_conventions import CROP_SIZE
+from hkpd.evaluation.calibration import COVERAGE_LEVELS, point_truth_rank
 from hkpd.prediction.image_input import ImageInputError
 from hkpd.prediction.keypoint_detector import NoPersonFoundError
 from hkpd.proxy import CONFIDENCE_THRESHOLD
@@ -132,10 +133,22 @@ def _errors(
     return distance.mean(-1).numpy()
 
 
+def _keypoint_ranks(
+    posterior, person: AnnotatedPerson, num_samples: int, seed: int
+) -> torch.Tensor:
+    """``(V,)`` ranks of the person's V visible annotated keypoints among ``num_samples``
+    sampled bodies' projections (:func:`hkpd.evaluation.calibration.point_truth_rank`)."""
+    mode = posterior.mode().keypoints2d[0].double()
+    samples = posterior.sample(num_samples, seed).keypoints2d.double()
+    truth = torch.as_tensor(person.keypoints, dtype=torch.float64)
+    visible = torch.as_tensor(person.visible)
+    return point_truth_rank(mode, samples, truth)[visible]
+
+
 def evaluate_photos(
     predictor, people: list[AnnotatedPerson], num_samples: int = 10, seed: int = 0,
     show_progress: bool = True, evidence: bool = False, upright: bool = False,
-    mode_errors: list[float] | None = None,
+    mode_errors: list[float] | None = None, coverage_samples: int = 25,
 ) -> dict[str, float]:  # fmt: skip
     """Mean 2D errors of the mode and of samples over ``people``.
 
@@ -149,14 +162,20 @@ def evaluate_photos(
         upright: let the network read people who lean more than 30° from an upright copy of
             the crop (``Predictor.predict``'s ``upright``; the predictor's default, off here so
             that the plain network is scored unless asked).
+        coverage_samples: bodies sampled per person (a separate draw) for the 2D coverage.
 
     Returns:
         ``joint_error_2d_mode`` / ``joint_error_2d_samples`` (px at a 256 crop),
         ``..._box_fraction`` (fraction of the annotated box's larger side),
         ``joint_error_2d_detector`` (px at a 256 crop, the detector's kept keypoints), ``people``
-        evaluated and ``failed`` (no detection).
+        evaluated and ``failed`` (no detection); ``keypoint_coverage_2d_{50,90}``: share of the
+        annotated keypoints (all people pooled) inside the disc about the mode's projection
+        that holds 50 % / 90 % of the samples' projections
+        (:func:`hkpd.evaluation.calibration.point_truth_rank`; calibrated:
+        :func:`~hkpd.evaluation.calibration.calibrated_coverage`, 0.50 / 0.885 with 25 samples).
     """
     sums = {"mode": [], "samples": [], "mode_box": [], "samples_box": [], "detector": []}
+    ranks: list[torch.Tensor] = []
     failed = 0
     for person in tqdm(people, disable=not show_progress, unit="person"):
         margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
@@ -182,6 +201,7 @@ def evaluate_photos(
         sums["samples"].append(samples * to_256)
         sums["mode_box"].append(mode / box_side)
         sums["samples_box"].append(samples / box_side)
+        ranks.append(_keypoint_ranks(posterior, person, coverage_samples, seed + 1))
         kept = posterior.confidences.cpu().numpy() >= CONFIDENCE_THRESHOLD
         detector = _errors(posterior.keypoints.cpu()[None], person, kept)[0]
         if np.isfinite(detector):
@@ -190,12 +210,18 @@ def evaluate_photos(
     def mean(values: list[float]) -> float:
         return float(np.mean(values)) if values else math.nan
 
+    pooled = torch.cat(ranks) if ranks else torch.empty(0)
+
     return {
         "joint_error_2d_mode": mean(sums["mode"]),
         "joint_error_2d_samples": mean(sums["samples"]),
         "joint_error_2d_mode_box_fraction": mean(sums["mode_box"]),
         "joint_error_2d_samples_box_fraction": mean(sums["samples_box"]),
         "joint_error_2d_detector": mean(sums["detector"]),
+        **{
+            f"keypoint_coverage_2d_{round(level * 100)}": mean((pooled < level).tolist())
+            for level in COVERAGE_LEVELS
+        },
         "people": float(len(sums["mode"])),
         "failed": float(failed),
     }

@@ -18,6 +18,8 @@ METRIC_LABELS: dict[str, str] = {
     "joint_error_2d_samples_box_fraction": "2D joint err. samples (box fraction)",
     "pose_coverage_50": "true pose in 50% region (share of joints)",
     "pose_coverage_90": "true pose in 90% region (share of joints)",
+    "keypoint_coverage_2d_50": "annotated keypoint in 50% disc of samples (share)",
+    "keypoint_coverage_2d_90": "annotated keypoint in 90% disc of samples (share)",
     "joint_error_2d_detector": "2D joint err. of the detector's input keypoints (px)",
     "people": "people evaluated",
     "cases": "cases",
