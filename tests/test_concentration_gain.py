@@ -62,3 +62,27 @@ def test_initial_weights_without_gain_load_into_a_network_with_it(tmp_path) -> N
     other = DistributionNetwork(NetworkConfig(**{**TINY, "backbone_base_width": 16}))
     with pytest.raises(ValueError, match="architecture"):
         load_initial_weights(other, path, "cpu")
+
+
+def test_a_gain_beyond_its_bound_gets_back_but_is_not_pushed_further_out() -> None:
+    from hkpd.network.output_decoding import bounded_log_gain
+
+    value = torch.tensor([-300.0, -300.0, 0.5, 300.0, 300.0], requires_grad=True)
+    bounded = bounded_log_gain(value)
+    torch.testing.assert_close(
+        bounded.detach(),
+        torch.tensor([-1.0, -1.0, 0.5, 1.0, 1.0])
+        * torch.tensor([MAX_LOG_GAIN, MAX_LOG_GAIN, 1.0, MAX_LOG_GAIN, MAX_LOG_GAIN]),
+    )
+    # upstream gradients: -1 asks a descent step to raise the value, +1 to lower it
+    bounded.backward(torch.tensor([-1.0, 1.0, 1.0, 1.0, -1.0]))
+    # below the range only raising passes; inside everything; above only lowering
+    torch.testing.assert_close(value.grad, torch.tensor([-1.0, 0.0, 1.0, 1.0, 0.0]))
+
+
+def test_a_stuck_gain_learns_again_through_decode_pose() -> None:
+    raw = torch.randn(2, 1, 9)
+    log_gain = torch.full((2, 1, 1), -200.0, requires_grad=True)
+    # a loss that wants more concentration reaches the stuck gain (a plain clamp gave 0)
+    (-decode_pose(raw, 1.0, log_gain).square().sum()).backward()
+    assert float(log_gain.grad.abs().min()) > 0.0

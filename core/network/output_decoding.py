@@ -90,6 +90,37 @@ MAX_LOG_GAIN = 6.0
 """Bound of the log concentration gain: ``exp(±6)`` scales ``F`` by at most ~400 either way."""
 
 
+class _InwardClamp(torch.autograd.Function):
+    """``clamp(value, -bound, bound)`` whose gradient is dropped only where it would push an
+    out-of-range value further out.
+
+    A plain clamp has zero gradient beyond its bounds, so a log-gain that one large step threw
+    past ``-MAX_LOG_GAIN`` can never come back: the joint's concentration stays at ``exp(-6)``
+    of its raw value for good (the orientation fine-tunes lost both elbows, both hands and the
+    right collar this way; docs/model_card.md, section 5). Here the gradient still passes when a
+    descent step would move the value back towards the range; the forward value is unchanged.
+    """
+
+    @staticmethod
+    def forward(ctx, value: torch.Tensor, bound: float) -> torch.Tensor:
+        ctx.save_for_backward(value)
+        ctx.bound = bound
+        return value.clamp(-bound, bound)
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None]:
+        (value,) = ctx.saved_tensors
+        # a descent step changes value by -grad: below the range only grad < 0 raises it
+        outward = ((value < -ctx.bound) & (grad > 0)) | ((value > ctx.bound) & (grad < 0))
+        return grad.masked_fill(outward, 0.0), None
+
+
+def bounded_log_gain(log_gain: torch.Tensor) -> torch.Tensor:
+    """``log_gain`` clamped to ``±MAX_LOG_GAIN``, with a gradient that can bring it back
+    from beyond the bound (:class:`_InwardClamp`)."""
+    return _InwardClamp.apply(log_gain, MAX_LOG_GAIN)
+
+
 def decode_pose(
     raw: torch.Tensor, concentration: float, log_gain: torch.Tensor | None = None
 ) -> torch.Tensor:
@@ -99,9 +130,9 @@ def decode_pose(
         raw: ``(..., 9)`` raw outputs of one or more joints.
         concentration: ``c``, the initial concentration.
         log_gain: optional ``(...)`` or ``(..., 1)`` log-gains ``g`` (clamped to
-            ``±MAX_LOG_GAIN``). Scaling ``F`` keeps the mode and principal axes and multiplies
-            every singular value, so one output moves a joint's whole concentration; zero
-            (as initialised) leaves ``F`` unchanged.
+            ``±MAX_LOG_GAIN`` by :func:`bounded_log_gain`). Scaling ``F`` keeps the mode and
+            principal axes and multiplies every singular value, so one output moves a joint's
+            whole concentration; zero (as initialised) leaves ``F`` unchanged.
 
     Returns:
         ``(..., 3, 3)`` in at least float32.
@@ -111,5 +142,5 @@ def decode_pose(
     F = raw.unflatten(-1, (3, 3)) + concentration * eye
     if log_gain is None:
         return F
-    gain = full_precision(log_gain).reshape(F.shape[:-2]).clamp(-MAX_LOG_GAIN, MAX_LOG_GAIN)
+    gain = bounded_log_gain(full_precision(log_gain).reshape(F.shape[:-2]))
     return F * gain.exp()[..., None, None]
