@@ -77,12 +77,10 @@ def main() -> None:
     spreads: dict[str, list[np.ndarray]] = {label: [] for label in ranks}
     hips: dict[str, list[np.ndarray]] = {"network only": [], "2D evidence": [], "detector": []}
     for person in people:
-        margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
-        search = person.bbox + np.array([-margin, -margin, margin, margin])
         for label, evidence in (("network only", False), ("2D evidence", True)):
             try:
                 posterior = predictor.predict(
-                    person.image_path, bbox=search, evidence=evidence, upright=True
+                    person.image_path, bbox=person.search_box(), evidence=evidence, upright=True
                 )
             except (NoPersonFoundError, ImageInputError, ValueError):
                 continue

@@ -63,8 +63,7 @@ def photo_occlusion_response(
     ratios: list[float] = []
     others: list[float] = []
     for person in tqdm(people, disable=not show_progress, unit="person"):
-        margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
-        search = person.bbox + np.array([-margin, -margin, margin, margin])
+        search = person.search_box()
         try:
             mask = silhouette_argument(predictor, person)
             clean = predictor.predict(person.image_path, bbox=search, evidence=evidence, **mask)

@@ -53,6 +53,12 @@ class AnnotatedPerson:
     outlines: tuple[np.ndarray, ...] = ()
     image_size: tuple[int, int] = (0, 0)
 
+    def search_box(self) -> np.ndarray:
+        """``(4,)`` the annotated box grown by 15 % of its larger side on every edge: where the
+        detector looks for this person (photo pixels)."""
+        margin = 0.15 * float((self.bbox[2:] - self.bbox[:2]).max())
+        return self.bbox + np.array([-margin, -margin, margin, margin])
+
     def silhouette(self) -> np.ndarray:
         """``(H, W)`` bool: the annotated person mask, drawn from :attr:`outlines`.
 
@@ -134,15 +140,14 @@ def _errors(
 
 
 def _keypoint_ranks(
-    posterior, person: AnnotatedPerson, num_samples: int, seed: int
+    mode: torch.Tensor, samples: torch.Tensor, person: AnnotatedPerson
 ) -> torch.Tensor:
-    """``(V,)`` ranks of the person's V visible annotated keypoints among ``num_samples``
-    sampled bodies' projections (:func:`hkpd.evaluation.calibration.point_truth_rank`)."""
-    mode = posterior.mode().keypoints2d[0].double()
-    samples = posterior.sample(num_samples, seed).keypoints2d.double()
+    """``(V,)`` ranks of the person's V visible annotated keypoints: ``mode`` ``(17, 2)`` and
+    ``samples`` ``(S, 17, 2)`` photo pixels
+    (:func:`hkpd.evaluation.calibration.point_truth_rank`)."""
     truth = torch.as_tensor(person.keypoints, dtype=torch.float64)
-    visible = torch.as_tensor(person.visible)
-    return point_truth_rank(mode, samples, truth)[visible]
+    ranks = point_truth_rank(mode.double(), samples.double(), truth)
+    return ranks[torch.as_tensor(person.visible)]
 
 
 def evaluate_photos(
@@ -178,12 +183,11 @@ def evaluate_photos(
     ranks: list[torch.Tensor] = []
     failed = 0
     for person in tqdm(people, disable=not show_progress, unit="person"):
-        margin = 0.15 * float((person.bbox[2:] - person.bbox[:2]).max())
-        search = person.bbox + np.array([-margin, -margin, margin, margin])
         try:
             mask = silhouette_argument(predictor, person)
             posterior = predictor.predict(
-                person.image_path, bbox=search, evidence=evidence, upright=upright or evidence,
+                person.image_path, bbox=person.search_box(), evidence=evidence,
+                upright=upright or evidence,
                 **mask,
             )  # fmt: skip
         except (NoPersonFoundError, ImageInputError, ValueError):
@@ -193,7 +197,8 @@ def evaluate_photos(
             continue
         to_256 = CROP_SIZE / posterior.crop.side
         box_side = float((person.bbox[2:] - person.bbox[:2]).max())
-        mode = _errors(posterior.mode().keypoints2d, person)[0]
+        mode_points = posterior.mode().keypoints2d
+        mode = _errors(mode_points, person)[0]
         samples = _errors(posterior.sample(num_samples, seed).keypoints2d, person).mean()
         sums["mode"].append(mode * to_256)
         if mode_errors is not None:
@@ -201,7 +206,8 @@ def evaluate_photos(
         sums["samples"].append(samples * to_256)
         sums["mode_box"].append(mode / box_side)
         sums["samples_box"].append(samples / box_side)
-        ranks.append(_keypoint_ranks(posterior, person, coverage_samples, seed + 1))
+        samples_points = posterior.sample(coverage_samples, seed + 1).keypoints2d
+        ranks.append(_keypoint_ranks(mode_points[0], samples_points, person))
         kept = posterior.confidences.cpu().numpy() >= CONFIDENCE_THRESHOLD
         detector = _errors(posterior.keypoints.cpu()[None], person, kept)[0]
         if np.isfinite(detector):

@@ -16,16 +16,16 @@ Usage: ``python -m hkpd.training.recentre_shape IN.pt OUT.pt [--poses poses.npz]
 
 from __future__ import annotations
 
-import argparse
 import sys
-from pathlib import Path
 
 import torch
 
-from hkpd.network.checkpoint import load_network, save_checkpoint
 from hkpd.network.hierarchical_head import HierarchicalHead
-from hkpd.poses import pose_source
-from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
+from hkpd.training.weight_edit_command import (
+    load_with_proxies,
+    save_edited,
+    weight_edit_arguments,
+)
 
 
 @torch.no_grad()
@@ -50,42 +50,17 @@ def recentre_shape_mean(network: torch.nn.Module, proxies: torch.Tensor) -> torc
     return offset
 
 
-def training_proxies(
-    network: torch.nn.Module, poses: Path | None, count: int, seed: int
-) -> torch.Tensor:
-    """``(count, C + 17, S, S)`` proxies of upright training-split crops at the network's size
-    (and of its image proxy)."""
-    config = SyntheticDataConfig(
-        image_size=int(network.config.image_size), image_proxy=network.config.image_proxy
-    )
-    generator = SyntheticDataGenerator(pose_source(poses, "train"), config)
-    return generator.generate(count, seed).batch.proxy
-
-
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("checkpoint", type=Path, help="weights to recentre")
-    parser.add_argument("out", type=Path, help="where to write them (for --init-weights)")
-    parser.add_argument("--poses", type=Path, help="pose bank (train split); else procedural")
-    parser.add_argument("--examples", type=int, default=200, help="crops to average over")
-    parser.add_argument("--seed", type=int, default=7)
-    arguments = parser.parse_args(argv)
-    if arguments.examples < 1:
-        parser.error("--examples must be >= 1")
-    if arguments.out.exists():
-        parser.error(f"{arguments.out} exists; choose another name (nothing was written)")
+    arguments = weight_edit_arguments(
+        argv, __doc__.splitlines()[0], "weights to recentre", "crops to average over"
+    )
     try:
-        network, payload = load_network(arguments.checkpoint)
-        network.eval()
-        proxies = training_proxies(network, arguments.poses, arguments.examples, arguments.seed)
+        network, payload, proxies = load_with_proxies(arguments)
     except (FileNotFoundError, ValueError) as error:
         print(f"recentre_shape: error: {error}", file=sys.stderr)
         return 2
     offset = recentre_shape_mean(network, proxies)
-    save_checkpoint(
-        arguments.out, network, payload["network_config"], payload["step"],
-        payload["train_config"], payload["samples_seen"],
-    )  # fmt: skip
+    save_edited(arguments.out, network, payload)
     print(f"removed the shape-mean offset {[round(v, 3) for v in offset.tolist()]}")
     print(f"wrote {arguments.out}")
     return 0

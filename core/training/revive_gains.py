@@ -18,18 +18,19 @@ Usage: ``python -m hkpd.training.revive_gains IN.pt OUT.pt [--poses poses.npz]``
 
 from __future__ import annotations
 
-import argparse
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import torch
 
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
-from hkpd.network.checkpoint import load_network, save_checkpoint
 from hkpd.network.hierarchical_head import HierarchicalHead
 from hkpd.network.output_decoding import MAX_LOG_GAIN
-from hkpd.training.recentre_shape import training_proxies
+from hkpd.training.weight_edit_command import (
+    load_with_proxies,
+    save_edited,
+    weight_edit_arguments,
+)
 
 
 @dataclass(frozen=True)
@@ -64,12 +65,13 @@ def log_gains(network: torch.nn.Module, proxies: torch.Tensor) -> torch.Tensor:
     head = network.head
     if not isinstance(head, HierarchicalHead):
         raise ValueError("only the hierarchical head has per-joint gain layers")
+    layers = _gain_layers(head)
     captured: dict[int, torch.Tensor] = {}
     hooks = [
         layer.register_forward_hook(
             lambda _module, _inputs, output, depth=depth: captured.__setitem__(depth, output)
         )
-        for depth, (_, layer) in enumerate(_gain_layers(head))
+        for depth, (_, layer) in enumerate(layers)
     ]
     try:
         network(proxies)
@@ -77,7 +79,7 @@ def log_gains(network: torch.nn.Module, proxies: torch.Tensor) -> torch.Tensor:
         for hook in hooks:
             hook.remove()
     gains = torch.empty(proxies.shape[0], head.num_joints)
-    for depth, (level, _) in enumerate(_gain_layers(head)):
+    for depth, (level, _) in enumerate(layers):
         gains[:, list(level)] = captured[depth][..., 0].float().cpu()
     return gains
 
@@ -109,21 +111,11 @@ def revive_stuck_gains(network: torch.nn.Module, proxies: torch.Tensor) -> list[
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("checkpoint", type=Path, help="weights to repair")
-    parser.add_argument("out", type=Path, help="where to write them (for --init-weights)")
-    parser.add_argument("--poses", type=Path, help="pose bank (train split); else procedural")
-    parser.add_argument("--examples", type=int, default=200, help="crops to probe with")
-    parser.add_argument("--seed", type=int, default=7)
-    arguments = parser.parse_args(argv)
-    if arguments.examples < 1:
-        parser.error("--examples must be >= 1")
-    if arguments.out.exists():
-        parser.error(f"{arguments.out} exists; choose another name (nothing was written)")
+    arguments = weight_edit_arguments(
+        argv, __doc__.splitlines()[0], "weights to repair", "crops to probe with"
+    )
     try:
-        network, payload = load_network(arguments.checkpoint)
-        network.eval()
-        proxies = training_proxies(network, arguments.poses, arguments.examples, arguments.seed)
+        network, payload, proxies = load_with_proxies(arguments)
         with torch.no_grad():
             before = network(proxies).F
         ranges = revive_stuck_gains(network, proxies)
@@ -142,10 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     if not revived:
         print("no joint's gain is stuck beyond the bound; nothing written")
         return 0
-    save_checkpoint(
-        arguments.out, network, payload["network_config"], payload["step"],
-        payload["train_config"], payload["samples_seen"],
-    )  # fmt: skip
+    save_edited(arguments.out, network, payload)
     print(f"revived {', '.join(revived)}; largest change of F on the probe crops: {change:.1e}")
     print(f"wrote {arguments.out}")
     return 0

@@ -1,0 +1,67 @@
+"""The command line shared by the tools that edit trained weights before a fine-tune
+(``recentre_shape``, ``revive_gains``): ``IN.pt OUT.pt``, crops to probe with, and ``OUT.pt``
+is never overwritten."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import torch
+
+from hkpd.network.checkpoint import load_network, save_checkpoint
+from hkpd.poses import pose_source
+from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
+
+
+def weight_edit_arguments(
+    argv: list[str] | None, description: str, checkpoint_help: str, examples_help: str
+) -> argparse.Namespace:
+    """Parse ``checkpoint out [--poses] [--examples] [--seed]``; exits (code 2) on a bad
+    ``--examples`` or an ``out`` that exists, before anything is loaded."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("checkpoint", type=Path, help=checkpoint_help)
+    parser.add_argument("out", type=Path, help="where to write them (for --init-weights)")
+    parser.add_argument("--poses", type=Path, help="pose bank (train split); else procedural")
+    parser.add_argument("--examples", type=int, default=200, help=examples_help)
+    parser.add_argument("--seed", type=int, default=7)
+    arguments = parser.parse_args(argv)
+    if arguments.examples < 1:
+        parser.error("--examples must be >= 1")
+    if arguments.out.exists():
+        parser.error(f"{arguments.out} exists; choose another name (nothing was written)")
+    return arguments
+
+
+def training_proxies(
+    network: torch.nn.Module, poses: Path | None, count: int, seed: int
+) -> torch.Tensor:
+    """``(count, C + 17, S, S)`` proxies of upright training-split crops at the network's size
+    (and of its image proxy)."""
+    config = SyntheticDataConfig(
+        image_size=int(network.config.image_size), image_proxy=network.config.image_proxy
+    )
+    generator = SyntheticDataGenerator(pose_source(poses, "train"), config)
+    return generator.generate(count, seed).batch.proxy
+
+
+def load_with_proxies(
+    arguments: argparse.Namespace,
+) -> tuple[torch.nn.Module, dict, torch.Tensor]:
+    """The checkpoint's network (eval mode), its payload and the probe crops' proxies.
+
+    Raises:
+        FileNotFoundError, ValueError: as :func:`hkpd.network.checkpoint.load_network`.
+    """
+    network, payload = load_network(arguments.checkpoint)
+    network.eval()
+    proxies = training_proxies(network, arguments.poses, arguments.examples, arguments.seed)
+    return network, payload, proxies
+
+
+def save_edited(out: Path, network: torch.nn.Module, payload: dict) -> None:
+    """Write ``network`` with the loaded checkpoint's step, configs and sample count."""
+    save_checkpoint(
+        out, network, payload["network_config"], payload["step"],
+        payload["train_config"], payload["samples_seen"],
+    )  # fmt: skip
