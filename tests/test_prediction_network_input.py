@@ -15,6 +15,7 @@ from hkpd.prediction import (
     points_under_boxes,
     prepare_network_input,
 )
+from hkpd.prediction.upright_view import UprightView
 
 DEMO_PHOTO = Path("/work/shared/data/demo_photos/yogait_t5.jpg")
 
@@ -88,6 +89,32 @@ def test_the_detector_sees_the_unpainted_photo_and_occluded_keypoints_are_not_ev
     small = prepare_network_input(photo, detector, crop_size=128)  # type: ignore[arg-type]
     assert tuple(small.proxy.shape) == (18, 128, 128) and small.crop_rgb.shape == (128, 128, 3)
     np.testing.assert_allclose(small.keypoints_crop, (prepared.keypoints_crop + 0.5) / 2 - 0.5)
+
+
+def test_a_second_view_framed_on_the_box_keypoints_is_the_crop_whatever_is_covered() -> None:
+    rng = np.random.default_rng(2)
+    photo = rng.integers(60, 200, (480, 640, 3), dtype=np.uint8)
+    keypoints = np.stack([np.linspace(250, 390, 17), np.linspace(60, 520, 17)], 1)  # feet cut
+    detector = FixedDetector(keypoints)
+    plain = prepare_network_input(photo, detector)  # type: ignore[arg-type]
+    covered = prepare_network_input(photo, detector, occluders=[(200, 300, 450, 480)])  # type: ignore[arg-type]
+    assert (covered.confidences == 0).sum() > 3  # the occluder hides evidence...
+    # ...but not the points that frame a second view of the crop (the upright copy).
+    np.testing.assert_array_equal(covered.box_keypoints_crop, plain.box_keypoints_crop)
+    # Points below the photo are moved onto its border first, as for the crop itself.
+    np.testing.assert_allclose(
+        plain.crop.crop_to_image(plain.box_keypoints_crop)[:, 1].max(), 479.5, atol=1e-9
+    )
+    # Untilted, the view framed on them is the crop itself: same centre and side.
+    size = plain.crop.size
+    view = UprightView.from_tilt(0.0, covered.box_keypoints_crop, size)
+    assert view.box.centre == pytest.approx(((size - 1) / 2, (size - 1) / 2), abs=1e-9)
+    assert view.box.side == pytest.approx(size, abs=1e-9)
+    # Framed on the evidence alone (unclipped), it would be another crop than the network's.
+    evidence_only = UprightView.from_tilt(
+        0.0, covered.keypoints_crop, size, covered.confidences > 0
+    )
+    assert abs(evidence_only.box.side / size - 1) > 0.05
 
 
 @pytest.mark.skipif(not DEMO_PHOTO.is_file(), reason="demo photos not available")

@@ -123,6 +123,36 @@ def test_the_reader_turns_leaning_people_upright_and_maps_the_answer_back() -> N
     torch.testing.assert_close(output.F, network(shown).F)  # relative rotations stay
 
 
+def test_the_reader_frames_its_copies_on_the_crops_keypoints_when_given() -> None:
+    network = RecordingNetwork()
+    reader = UprightReader(network)
+    lying = turned(STANDING, 100.0)
+    present = torch.ones(1, 17, dtype=torch.bool)
+    present[0, [0, 1, 2, 3, 4, 15, 16]] = False  # no face, no ankles in the heatmaps
+    proxy = proxies_of(lying, present=present)
+    reader(proxy)
+    on_shown = network.seen[-1]
+    reader(proxy, crop_keypoints=torch.as_tensor(lying[None], dtype=torch.float32))
+    on_all = network.seen[-1]
+
+    # Framed on all 17 points, the copy shows the person smaller than framed on the shown ones.
+    def spread(shown: torch.Tensor) -> float:
+        keypoints, seen = heatmap_peaks(shown[:, 1:])
+        return float(keypoints[0][seen[0]].std(0).norm())
+
+    assert spread(on_all) < 0.9 * spread(on_shown)
+    keypoints, seen = heatmap_peaks(on_all[:, 1:])
+    view = UprightView.from_tilt(math.radians(reader.last_tilts_degrees[0]), lying, SIZE)
+    torch.testing.assert_close(
+        keypoints[0][seen[0]].double(),
+        torch.as_tensor(view.points(lying)[present[0].numpy()]),
+        atol=0.05,
+        rtol=0,
+    )
+    with pytest.raises(ValueError, match="crop_keypoints"):
+        reader(proxy, crop_keypoints=torch.zeros(1, 16, 2))
+
+
 def test_the_reader_is_the_network_itself_for_upright_people() -> None:
     torch.manual_seed(0)
     network = DistributionNetwork(NetworkConfig(backbone_base_width=8, image_size=SIZE)).eval()

@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tempfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -100,6 +101,13 @@ def build_parser() -> argparse.ArgumentParser:
         "split and on --coco",
     )
     parser.add_argument(
+        "--coco-turns",
+        action="store_true",
+        help="with --coco: also score every person on their photo turned by 90, 180 and 270 "
+        "degrees (exact quarter turns: people lying on their side and upside down), read as the "
+        "predictor reads them (upright copy; with --evidence also the evidence posterior)",
+    )
+    parser.add_argument(
         "--detector-errors",
         action="store_true",
         help="with --coco: also measure BlazePose against the human keypoints (jitter, misses, "
@@ -169,12 +177,15 @@ def evaluate_synthetic(
     network, generator = _network_and_test_generator(
         checkpoint, poses, device, orientation=orientation
     )
-    if upright_reading:
-        network = UprightReader(network)
     network = ConcentrationScaled(network, concentration_scale)
+    if upright_reading:  # its copies framed like the test crops, on all 17 keypoints
+        network = UprightReader(network)
     batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
     size = generator.config.image_size
-    return evaluate_batches(network, batches, generator.body, samples) | {"image_size": size}
+    metrics = evaluate_batches(
+        network, batches, generator.body, samples, pass_crop_keypoints=upright_reading
+    )
+    return metrics | {"image_size": size}
 
 
 def _metric_order(name: str) -> tuple[str, int]:
@@ -195,6 +206,8 @@ def main(argv: list[str] | None = None) -> int:
             raise FileNotFoundError(f"pose bank {arguments.poses} does not exist")
         if arguments.figure is not None and arguments.no_synthetic:
             raise ValueError("--figure draws the synthetic results: drop --no-synthetic")
+        if arguments.coco_turns and arguments.coco is None:
+            raise ValueError("--coco-turns turns the --coco photos: give --coco too")
         if arguments.coco is not None and not arguments.coco.is_dir():
             raise FileNotFoundError(f"COCO folder {arguments.coco} does not exist")
         for name in ("count", "samples"):
@@ -307,8 +320,7 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
                 + markdown_table(rows, EVIDENCE_COLUMNS)
             )
     if arguments.coco is not None:
-        from hkpd.evaluation.real_photos import evaluate_photos, load_coco_people
-        from hkpd.prediction.predictor import Predictor
+        from hkpd.evaluation.real_photos import load_coco_people
 
         people = load_coco_people(arguments.coco)
         if arguments.coco_split:
@@ -316,23 +328,9 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             if not people:
                 raise SystemExit(f"hkpd-eval: error: no annotated people in split "
                                  f"{arguments.coco_split!r} of {arguments.coco}")  # fmt: skip
-        rows, occlusion_rows = {}, {}
-        for checkpoint in arguments.checkpoints:
-            predictor = Predictor.from_pretrained(checkpoint, device=str(device))
-            if not arguments.evidence:
-                rows[str(checkpoint)] = evaluate_photos(predictor, people)
-                if arguments.upright_reading:
-                    rows[f"{checkpoint} (upright reading)"] = evaluate_photos(
-                        predictor, people, upright=True
-                    )
-            else:
-                from hkpd.evaluation.photo_occlusion import photo_occlusion_response
-
-                for evidence, label in ((False, "network only"), (True, "2D evidence")):
-                    name = f"{checkpoint} ({label})"
-                    rows[name] = evaluate_photos(predictor, people, evidence=evidence)
-                    occlusion_rows[name] = photo_occlusion_response(predictor, people, evidence)
-            predictor.close()
+        with tempfile.TemporaryDirectory(prefix="hkpd_turned_") as folder:
+            turned = _turned_people(people, Path(folder)) if arguments.coco_turns else {}
+            rows, occlusion_rows = _photo_rows(arguments, people, turned, device)
         if arguments.detector_errors:
             report.append(_detector_error_table(load_coco_people(arguments.coco, 6), arguments))
         columns = list(next(iter(rows.values())))
@@ -367,6 +365,51 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
     if arguments.multi_view_shape > 0:
         report.append(_multi_view_shape_report(arguments, device))
     return "\n".join(report)
+
+
+def _photo_rows(
+    arguments: argparse.Namespace, people: list, turned: dict[int, list], device: torch.device
+) -> tuple[dict[str, dict[str, float]], dict[str, dict[str, float]]]:
+    """The real-photo rows (and occlusion rows, with ``--evidence``) of every checkpoint on
+    ``people`` and on the ``turned`` copies of them."""
+    from hkpd.evaluation.real_photos import evaluate_photos
+    from hkpd.prediction.predictor import Predictor
+
+    rows, occlusion_rows = {}, {}
+    for checkpoint in arguments.checkpoints:
+        predictor = Predictor.from_pretrained(checkpoint, device=str(device))
+        if not arguments.evidence:
+            rows[str(checkpoint)] = evaluate_photos(predictor, people)
+            if arguments.upright_reading or turned:
+                rows[f"{checkpoint} (upright reading)"] = evaluate_photos(
+                    predictor, people, upright=True
+                )
+        else:
+            from hkpd.evaluation.photo_occlusion import photo_occlusion_response
+
+            for evidence, label in ((False, "network only"), (True, "2D evidence")):
+                name = f"{checkpoint} ({label})"
+                rows[name] = evaluate_photos(predictor, people, evidence=evidence)
+                occlusion_rows[name] = photo_occlusion_response(predictor, people, evidence)
+        for degrees, turned_people in turned.items():
+            for evidence in (False, True) if arguments.evidence else (False,):
+                label = "2D evidence" if evidence else "network only, read upright"
+                rows[f"{checkpoint} (turned {degrees}°, {label})"] = evaluate_photos(
+                    predictor, turned_people, evidence=evidence, upright=True
+                )
+        predictor.close()
+    return rows, occlusion_rows
+
+
+def _turned_people(people: list, folder: Path) -> dict[int, list]:
+    """``{degrees: people on their photos turned by it}`` for every quarter turn
+    (:mod:`hkpd.evaluation.turned_photos`), the turned photos written to ``folder``."""
+    from hkpd.evaluation.turned_photos import QUARTER_TURNS, turned_person
+
+    return {
+        degrees: [turned_person(person, degrees, folder) for person in people]
+        for degrees in QUARTER_TURNS
+    }
 
 
 def _multi_view_shape_report(arguments: argparse.Namespace, device: torch.device) -> str:

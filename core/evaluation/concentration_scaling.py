@@ -28,6 +28,9 @@ class ConcentrationScaled(torch.nn.Module):
         network: a :class:`hkpd.network.DistributionNetwork` (or anything returning a
             :class:`NetworkOutput` for a ``(B, C, S, S)`` proxy).
         factor: the positive, finite scale applied to every ``(B, 23, 3, 3)`` F.
+
+    Attributes:
+        config: the wrapped network's ``config``.
     """
 
     def __init__(self, network: torch.nn.Module, factor: float) -> None:
@@ -35,6 +38,7 @@ class ConcentrationScaled(torch.nn.Module):
         if not (math.isfinite(factor) and factor > 0):
             raise ValueError(f"the concentration scale must be a positive number, got {factor}")
         self.network = network
+        self.config = network.config
         self.factor = float(factor)
 
     def forward(self, proxy: torch.Tensor) -> NetworkOutput:

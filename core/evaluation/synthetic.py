@@ -38,6 +38,7 @@ def evaluate_batches(
     body: BodyModel,
     num_samples: int = 25,
     seed: int = 0,
+    pass_crop_keypoints: bool = False,
 ) -> dict[str, float]:
     """Mean of every metric over all examples (NaN-aware: e.g. images with no hidden joint
     do not count for ``diversity_invisible``).
@@ -48,6 +49,9 @@ def evaluate_batches(
         body: body model on the network's device.
         num_samples: bodies sampled per example for the sample metrics.
         seed: seeds the sampling, so repeated evaluations agree exactly.
+        pass_crop_keypoints: call ``network(proxy, crop_keypoints=batch.keypoints2d)``, the
+            keypoints each crop was framed on (for
+            :class:`hkpd.prediction.upright_reading.UprightReader`).
 
     Returns:
         ``{metric: mean}``: 3D metrics (MPJPE variants, PVE-T-SC, diversity) in millimetres,
@@ -60,7 +64,10 @@ def evaluate_batches(
         device = batch.proxy.device
         if generator is None:
             generator = torch.Generator(device=device).manual_seed(seed)
-        output = network(batch.proxy)
+        if pass_crop_keypoints:
+            output = network(batch.proxy, crop_keypoints=batch.keypoints2d)
+        else:
+            output = network(batch.proxy)
         targets = targets_of(batch)
         size = batch.proxy.shape[-1]
         results = evaluate_prediction(output, body, targets, num_samples, size, generator)

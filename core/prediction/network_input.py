@@ -55,6 +55,17 @@ class NetworkInput:
     image: LoadedImage
     crop_silhouette: np.ndarray | None = None
 
+    @property
+    def box_keypoints_crop(self) -> np.ndarray:
+        """``(17, 2)`` float64 crop pixels: the keypoints that placed the crop box, by the
+        training crops' rule (:meth:`CropTransform.from_keypoints`): every keypoint the detector
+        returned, evidence or not, moved onto the photo's border when outside it. A second view
+        of the crop (the upright copy) framed on these is framed as the crop itself was, and
+        painting an occluder does not move it."""
+        width, height = self.detection.image_size
+        points = np.asarray(self.detection.keypoints, dtype=np.float64)
+        return self.crop.image_to_crop(np.clip(points, -0.5, [width - 0.5, height - 0.5]))
+
 
 def prepare_network_input(
     image: str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage,

@@ -159,9 +159,10 @@ class Predictor:
             if tilt is not None and abs(tilt) > np.radians(
                 self.evidence_config.upright_start_degrees
             ):
-                view = UprightView.from_tilt(
-                    tilt, prepared.keypoints_crop, self.crop_size, observed
-                )
+                # Framed as the crop was (on every detected keypoint), not on the evidence
+                # alone: the network learnt crops framed around the whole person, and covering
+                # a limb must not move the copy.
+                view = UprightView.from_tilt(tilt, prepared.box_keypoints_crop, self.crop_size)
                 proxies.append(_upright_proxy(view, prepared, self.image_proxy))
             output = self.network(torch.stack(proxies).to(self.device))
             starts = _starts(output, view)
