@@ -34,6 +34,10 @@ import torch
 FORMAT = "hkpd-checkpoint"
 VERSION = 2
 
+CALIBRATION_KEY = "log_concentration_scale"
+"""The network's per-joint concentration calibration buffer; checkpoints older than it lack it
+(and load with zeros, i.e. uncalibrated)."""
+
 
 class CheckpointError(ValueError):
     """A file is not a readable hkpd checkpoint; the message says why and what to do."""
@@ -177,8 +181,26 @@ def load_network(path: Path | str, device: str | torch.device = "cpu") -> tuple[
         key: value.float() if value.is_floating_point() else value
         for key, value in payload["model"].items()
     }
-    network.load_state_dict(state)
+    load_weights(network, state, path)
     return network.to(device).eval(), payload
+
+
+def load_weights(network: Any, state: dict, source: Path | str) -> None:
+    """``network.load_state_dict(state)``, strictly, except that a state written before the
+    concentration calibration existed (no :data:`CALIBRATION_KEY`) loads as uncalibrated.
+
+    Raises:
+        CheckpointError: any other missing or unexpected key.
+    """
+    missing, unexpected = network.load_state_dict(state, strict=False)
+    if unexpected or set(missing) - {CALIBRATION_KEY}:
+        raise CheckpointError(
+            f"{source} does not fit its own architecture: missing {missing}, unexpected "
+            f"{unexpected}"
+        )
+    if CALIBRATION_KEY in missing:
+        with torch.no_grad():
+            getattr(network, CALIBRATION_KEY).zero_()
 
 
 def load_initial_weights(network: Any, path: Path | str, device: str | torch.device) -> None:
@@ -186,7 +208,9 @@ def load_initial_weights(network: Any, path: Path | str, device: str | torch.dev
 
     The architectures must match, except that ``network`` may add the concentration gain the
     trained one lacks: its gain layers then keep their zero initialisation, so the network
-    starts out predicting exactly what the trained one did.
+    starts out predicting exactly what the trained one did. A per-joint concentration
+    calibration of the trained weights (:mod:`hkpd.training.calibrate_concentration`) is not
+    carried over: a fine-tune trains the raw distributions; calibrate its result again.
 
     Raises:
         ValueError: if the architectures differ otherwise.
@@ -204,7 +228,10 @@ def load_initial_weights(network: Any, path: Path | str, device: str | torch.dev
             f"--init-weights {path} has architecture {payload['network_config']}, but this run "
             f"builds {wanted}: match --image-size, --backbone-base-width and --pose-head"
         )
-    missing, unexpected = network.load_state_dict(initial.state_dict(), strict=False)
-    not_gain = [key for key in missing if "log_gain" not in key]
+    weights = {key: value for key, value in initial.state_dict().items() if key != CALIBRATION_KEY}
+    missing, unexpected = network.load_state_dict(weights, strict=False)
+    with torch.no_grad():
+        getattr(network, CALIBRATION_KEY).zero_()
+    not_gain = [key for key in missing if "log_gain" not in key and key != CALIBRATION_KEY]
     if unexpected or not_gain:
         raise ValueError(f"--init-weights {path}: missing {missing}, unexpected {unexpected}")

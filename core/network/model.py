@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import torch
@@ -26,6 +27,11 @@ class DistributionNetwork(nn.Module):
         config: the :class:`NetworkConfig` (store ``config.to_dict()`` in checkpoints).
         backbone: :class:`hkpd.network.backbone.ResNetBackbone`.
         head: :class:`IndependentHead` or :class:`HierarchicalHead`.
+        log_concentration_scale: ``(23,)`` buffer: each joint's final ``F`` is multiplied by
+            ``exp`` of its entry (zeros, i.e. unchanged, unless the weights were calibrated by
+            :mod:`hkpd.training.calibrate_concentration`). It acts after the head, so the
+            hierarchical head's children still read their ancestors' uncalibrated ``F``, and
+            it keeps every joint's mode. Checkpoints written before it existed load with zeros.
     """
 
     def __init__(self, config: NetworkConfig | None = None) -> None:
@@ -53,6 +59,7 @@ class DistributionNetwork(nn.Module):
                 BODY_PARENTS,
                 **initial,
             )
+        self.register_buffer("log_concentration_scale", torch.zeros(len(BODY_PARENTS)))
 
     @classmethod
     def from_config(cls, config: NetworkConfig | dict[str, Any]) -> DistributionNetwork:
@@ -75,7 +82,9 @@ class DistributionNetwork(nn.Module):
             ValueError: if the input's shape does not match the config.
         """
         self._check_input(proxy)
-        return self.head(self.backbone(proxy))
+        output = self.head(self.backbone(proxy))
+        scale = self.log_concentration_scale.exp().to(output.F.dtype)
+        return replace(output, F=output.F * scale[:, None, None])
 
     def _check_input(self, proxy: torch.Tensor) -> None:
         c = self.config

@@ -24,6 +24,7 @@ from hkpd.body import BodyModel
 from hkpd.devices import resolve_device
 from hkpd.evaluation.synthetic import evaluate_batches
 from hkpd.network import DistributionNetwork
+from hkpd.network.checkpoint import load_weights
 from hkpd.network.config import NetworkConfig
 from hkpd.poses import PoseSource, pose_source
 from hkpd.synthesis.generator import (
@@ -213,7 +214,7 @@ def build_training(config: TrainConfig, resume: bool = False) -> TrainingSetup:
 
 def _resume(setup: TrainingSetup, payload: dict) -> None:
     """Weights, optimiser, counters and random states from a checkpoint; logs cut after it."""
-    setup.network.load_state_dict(payload["model"])
+    load_weights(setup.network, payload["model"], setup.out / CHECKPOINT_NAME)
     setup.optimizer.load_state_dict(payload["optimizer"])
     setup.step, setup.samples_seen = int(payload["step"]), int(payload["samples_seen"])
     for log in LOGS:

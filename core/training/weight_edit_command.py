@@ -1,6 +1,6 @@
-"""The command line shared by the tools that edit trained weights before a fine-tune
-(``recentre_shape``, ``revive_gains``): ``IN.pt OUT.pt``, crops to probe with, and ``OUT.pt``
-is never overwritten."""
+"""The command line shared by the tools that edit trained weights (``recentre_shape`` and
+``revive_gains`` before a fine-tune, ``calibrate_concentration`` after one): ``IN.pt OUT.pt``,
+crops to probe with, and ``OUT.pt`` is never overwritten."""
 
 from __future__ import annotations
 
@@ -15,15 +15,20 @@ from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
 
 
 def weight_edit_arguments(
-    argv: list[str] | None, description: str, checkpoint_help: str, examples_help: str
+    argv: list[str] | None,
+    description: str,
+    checkpoint_help: str,
+    examples_help: str,
+    default_examples: int = 200,
+    poses_help: str = "pose bank (train split); else procedural",
 ) -> argparse.Namespace:
     """Parse ``checkpoint out [--poses] [--examples] [--seed]``; exits (code 2) on a bad
     ``--examples`` or an ``out`` that exists, before anything is loaded."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("checkpoint", type=Path, help=checkpoint_help)
     parser.add_argument("out", type=Path, help="where to write them (for --init-weights)")
-    parser.add_argument("--poses", type=Path, help="pose bank (train split); else procedural")
-    parser.add_argument("--examples", type=int, default=200, help=examples_help)
+    parser.add_argument("--poses", type=Path, help=poses_help)
+    parser.add_argument("--examples", type=int, default=default_examples, help=examples_help)
     parser.add_argument("--seed", type=int, default=7)
     arguments = parser.parse_args(argv)
     if arguments.examples < 1:
