@@ -97,8 +97,10 @@ def test_the_command_writes_a_calibrated_copy_and_never_overwrites(tmp_path, cap
     network = _network()
     source = save_checkpoint(tmp_path / "in.pt", network, network.config.to_dict(), 2, {}, 32)
     out = tmp_path / "out.pt"
-    assert main([str(source), str(out), "--examples", "6"]) == 0
+    figure = tmp_path / "figures" / "calibration.png"
+    assert main([str(source), str(out), "--examples", "6", "--figure", str(figure)]) == 0
     printed = capsys.readouterr().out
+    assert figure.is_file() and figure.stat().st_size > 10_000
     assert "| left_hip |" in printed and "all joints after" in printed
     calibrated, payload = load_network(out)
     assert payload["step"] == 2

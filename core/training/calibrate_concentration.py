@@ -19,7 +19,8 @@ whose true rotation is always the rest pose at their mode). Any earlier calibrat
 input is replaced, not compounded.
 
 Usage: ``python -m hkpd.training.calibrate_concentration IN.pt OUT.pt --poses poses.npz``
-(then ``hkpd-eval OUT.pt ...``; ``OUT.pt`` is never overwritten).
+(then ``hkpd-eval OUT.pt ...``; ``OUT.pt`` is never overwritten; ``--figure calibration.png``
+also draws the per-joint coverage before and after).
 """
 
 from __future__ import annotations
@@ -159,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
         "validation examples to calibrate on",
         default_examples=500,
         poses_help="pose bank (its validation split); else procedural",
+        figure=True,
     )
     try:
         network, payload = load_network(arguments.checkpoint)
@@ -183,6 +185,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"all joints {name}: {means[0]:.3f} / {means[1]:.3f}")
     save_edited(arguments.out, network, payload)
     print(f"wrote {arguments.out}")
+    if arguments.figure is not None:
+        from hkpd.training.calibration_figure import plot_joint_calibration
+
+        print(f"wrote {plot_joint_calibration(rows, (targets[0], targets[1]), arguments.figure)}")
     return 0
 
 

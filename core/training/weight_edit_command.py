@@ -21,8 +21,10 @@ def weight_edit_arguments(
     examples_help: str,
     default_examples: int = 200,
     poses_help: str = "pose bank (train split); else procedural",
+    figure: bool = False,
 ) -> argparse.Namespace:
-    """Parse ``checkpoint out [--poses] [--examples] [--seed]``; exits (code 2) on a bad
+    """Parse ``checkpoint out [--poses] [--examples] [--seed]`` (and ``[--figure]`` when asked
+    for); exits (code 2) on a bad
     ``--examples`` or an ``out`` that exists, before anything is loaded."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("checkpoint", type=Path, help=checkpoint_help)
@@ -30,6 +32,8 @@ def weight_edit_arguments(
     parser.add_argument("--poses", type=Path, help=poses_help)
     parser.add_argument("--examples", type=int, default=default_examples, help=examples_help)
     parser.add_argument("--seed", type=int, default=7)
+    if figure:
+        parser.add_argument("--figure", type=Path, help="also draw the result into this PNG")
     arguments = parser.parse_args(argv)
     if arguments.examples < 1:
         parser.error("--examples must be >= 1")
