@@ -113,3 +113,17 @@ def test_the_command_writes_a_calibrated_copy_and_never_overwrites(tmp_path, cap
     with pytest.raises(SystemExit):
         main([str(source), str(out)])
     assert main([str(tmp_path / "missing.pt"), str(tmp_path / "x.pt")]) == 2
+
+
+def test_the_shipped_weights_are_calibrated_within_the_search_grid() -> None:
+    """The evidence default (``EvidenceConfig.prior_weight``) was tuned for calibrated weights:
+    shipping uncalibrated ones (all factors 1) must not pass unnoticed."""
+    from pathlib import Path
+
+    shipped = Path(__file__).resolve().parents[1] / "assets" / "models" / "hkpd_hierarchical.pt"
+    network, _ = load_network(shipped)
+    log_scales = getattr(network, CALIBRATION_KEY)
+    assert log_scales.shape == (23,)
+    assert torch.isfinite(log_scales).all()
+    assert (log_scales != 0).sum() >= 10, "the shipped weights carry no concentration calibration"
+    assert log_scales.abs().max() <= 5 * math.log(2) + 1e-4

@@ -39,7 +39,7 @@ class EvidenceConfig:
             ``docs/evidence.md`` says how the defaults were chosen.
     """
 
-    prior_weight: float = 0.2
+    prior_weight: float = 0.5
     keypoint_sigma: float = 0.03
     robust_scale: float = 3.0
     min_confidence: float = 0.6
