@@ -7,8 +7,11 @@ import math
 import numpy as np
 import pytest
 import torch
+from limb_lean_network import LimbLeanNetwork, rolled_frontal
 
+from hkpd.body import BodyModel
 from hkpd.network import DistributionNetwork, NetworkConfig, NetworkOutput
+from hkpd.prediction.network_lean import mode_torso_tilts
 from hkpd.prediction.upright_reading import UprightReader
 from hkpd.prediction.upright_view import UprightView, torso_tilt
 from hkpd.proxy import assemble_proxy
@@ -163,3 +166,41 @@ def test_the_reader_is_the_network_itself_for_upright_people() -> None:
         torch.testing.assert_close(getattr(read, name), getattr(direct, name), rtol=0, atol=0)
     with pytest.raises(ValueError, match="threshold_degrees"):
         UprightReader(network, threshold_degrees=-1.0)
+
+
+LIMBS_ONLY = torch.zeros(1, 17, dtype=torch.bool)
+LIMBS_ONLY[0, [7, 8, 9, 10, 15, 16]] = True  # elbows, wrists, ankles: no torso, no stand-in
+
+
+def test_the_lean_of_the_body_a_network_reads_is_its_torsos_on_screen() -> None:
+    leans = [0.0, 70.0, -135.0, 180.0]
+    output = NetworkOutput(
+        F=torch.eye(3).expand(4, 23, 3, 3) * 1000.0,
+        shape_mean=torch.zeros(4, 10),
+        shape_std=torch.ones(4, 10),
+        global_orient=torch.stack([rolled_frontal(lean) for lean in leans]),
+        camera=torch.tensor([[1.0, 0.0, 0.0], [2.0, 0.1, 0.0], [1.0, 0.0, 0.3], [0.5, 0, 0]]),
+    )
+    tilts = mode_torso_tilts(output, BodyModel(), SIZE)
+    for tilt, lean in zip(tilts, leans, strict=True):
+        off = (math.degrees(tilt) - lean + 180.0) % 360.0 - 180.0
+        assert abs(off) < 1.0, (math.degrees(tilt), lean)
+
+
+def test_without_a_torso_the_reader_turns_people_by_the_networks_own_lean() -> None:
+    lying = turned(STANDING, 110.0)
+    proxy = proxies_of(STANDING, lying, present=LIMBS_ONLY.expand(2, 17))
+    network = LimbLeanNetwork(SIZE)
+    reader = UprightReader(network)
+    output = reader(proxy)
+    assert math.isnan(reader.last_tilts_degrees[0])  # upright: read as it is
+    assert reader.last_tilts_degrees[1] == pytest.approx(110.0, abs=3.0)
+    # The last copy showed the lying person upright, and the answer was mapped back.
+    assert abs(network.leans[-1][1]) < 3.0
+    rotation = output.global_orient[1].double()
+    torch.testing.assert_close(
+        rotation, rolled_frontal(110.0).double(), atol=0.06, rtol=0
+    )  # within about 3 degrees
+    as_read = UprightReader(LimbLeanNetwork(SIZE), lean_from_network=False)
+    as_read(proxy)
+    assert np.isnan(as_read.last_tilts_degrees).all()

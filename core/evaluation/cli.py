@@ -179,7 +179,7 @@ def evaluate_synthetic(
     )
     network = ConcentrationScaled(network, concentration_scale)
     if upright_reading:  # its copies framed like the test crops, on all 17 keypoints
-        network = UprightReader(network)
+        network = UprightReader(network, body=generator.body)
     batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
     size = generator.config.image_size
     metrics = evaluate_batches(

@@ -93,8 +93,9 @@ class BodyPosterior:
         evidence: ``(17,)`` bool, the keypoints that counted as evidence (confident and not
             under an occluder); None when unknown.
         upright_tilt_degrees: the network read a copy of the crop turned upright by this many
-            degrees (the detected torso's lean, clockwise on screen) and its answer was mapped
-            back to the photo; None when it read the crop as it is.
+            degrees (the detected torso's lean, clockwise on screen, or, when the evidence shows
+            no torso, the lean of the body the network read) and its answer was mapped back to
+            the photo; None when it read the crop as it is.
     """
 
     F: torch.Tensor

@@ -7,10 +7,11 @@ By default it then conditions the network's distribution on the detected keypoin
 distribution is the prior, the confident keypoints that no occluder covers are the evidence.
 When the torso leans more than ``EvidenceConfig.upright_start_degrees``, the network also reads
 a copy of the crop turned upright (:mod:`hkpd.prediction.upright_view`) and the fit starts from
-both answers. ``evidence=False`` returns the network's own distribution (the paper's method);
-for a leaning person that is its answer on the upright copy, mapped back to the photo (on
-held-out photos this reading alone cut the network's error by a third), unless
-``upright=False``.
+both answers; when the evidence shows no torso, the lean is read off the network's own reading
+(:mod:`hkpd.prediction.network_lean`). ``evidence=False`` returns the network's own
+distribution (the paper's method); for a leaning person that is its answer on the upright copy,
+mapped back to the photo (on held-out photos this reading alone cut the network's error by a
+third), unless ``upright=False``.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from hkpd.network.output import NetworkOutput
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
+from hkpd.prediction.network_lean import LEAN_REREADINGS, mode_torso_tilts
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.upright_view import UprightView, torso_tilt
 from hkpd.proxy import build_proxy
@@ -132,7 +134,9 @@ class Predictor:
                 ``evidence_config.upright_start_degrees``, let the network also read a copy of
                 the crop turned upright (``posterior.upright_tilt_degrees`` says by how much):
                 with ``evidence`` the fit starts from both answers, without it the upright
-                copy's answer is the network's posterior. False reads the crop as it is.
+                copy's answer is the network's posterior. When the evidence shows no torso
+                (nor a stand-in for it), the lean is that of the body the network reads
+                (:mod:`hkpd.prediction.network_lean`). False reads the crop as it is.
             silhouette: ``(H, W)`` bool mask of the person, original-photo pixels: only for
                 networks that read a silhouette instead of edges (the proxy ablation's
                 ``network.config.image_proxy == "silhouette"``), which need one.
@@ -156,13 +160,12 @@ class Predictor:
             tilt = torso_tilt(prepared.keypoints_crop, observed) if upright else None
             view = None
             proxies = [prepared.proxy]
-            if tilt is not None and abs(tilt) > np.radians(
-                self.evidence_config.upright_start_degrees
-            ):
-                # Framed as the crop was (on every detected keypoint), not on the evidence
-                # alone: the network learnt crops framed around the whole person, and covering
-                # a limb must not move the copy.
-                view = UprightView.from_tilt(tilt, prepared.box_keypoints_crop, self.crop_size)
+            if tilt is not None and abs(tilt) > self._upright_threshold:
+                view = self._upright_view(tilt, prepared)
+            elif upright and tilt is None:  # no torso in the evidence: the network's lean
+                view = self._view_from_network_lean(prepared)
+            if view is not None:
+                tilt = view.tilt
                 proxies.append(_upright_proxy(view, prepared, self.image_proxy))
             output = self.network(torch.stack(proxies).to(self.device))
             starts = _starts(output, view)
@@ -192,6 +195,42 @@ class Predictor:
             prior=prior,
             evidence_fit=fit,
         )
+
+    @property
+    def _upright_threshold(self) -> float:
+        """Lean (radians) from which the network also reads an upright copy."""
+        return math.radians(self.evidence_config.upright_start_degrees)
+
+    def _upright_view(self, tilt: float, prepared: NetworkInput) -> UprightView:
+        """The upright copy undoing ``tilt``, framed as the crop was (on every detected
+        keypoint), not on the evidence alone: the network learnt crops framed around the whole
+        person, and covering a limb must not move the copy."""
+        return UprightView.from_tilt(tilt, prepared.box_keypoints_crop, self.crop_size)
+
+    def _view_from_network_lean(self, prepared: NetworkInput) -> UprightView | None:
+        """For a crop whose evidence shows no torso: the upright copy turned by the lean of the
+        network's own reading, refined over :data:`LEAN_REREADINGS` readings
+        (:mod:`hkpd.prediction.network_lean`); None when the body it reads stands within the
+        threshold of upright."""
+        view = None
+        output = self.network(prepared.proxy[None].to(self.device))
+        for reading in range(LEAN_REREADINGS):
+            if reading:
+                turned = _upright_proxy(view, prepared, self.image_proxy)[None]
+                output = self.network(turned.to(self.device))
+                orient, camera = view.to_crop_frame(
+                    output.global_orient[0].cpu(), output.camera[0].cpu()
+                )
+                output = replace(
+                    output,
+                    global_orient=orient[None].to(self.device),
+                    camera=camera[None].to(self.device),
+                )
+            (tilt,) = mode_torso_tilts(output, self.body, self.crop_size)
+            if tilt is None or abs(tilt) <= self._upright_threshold:
+                return None
+            view = self._upright_view(tilt, prepared)
+        return view
 
     def _posterior(
         self,

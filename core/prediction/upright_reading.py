@@ -6,7 +6,9 @@ its shoulder and hip heatmaps, leans more than a threshold from upright, the net
 copy turned upright (:class:`hkpd.prediction.upright_view.UprightView`: the edge image (or
 whichever image proxy the network reads) warped, the heatmaps drawn again at the turned
 keypoints) and its global rotation and camera are mapped back to the original frame.
-Relative joint rotations and shape do not depend on the view.
+Relative joint rotations and shape do not depend on the view. Examples whose heatmaps show no
+torso are turned by the lean of the network's own reading instead
+(:mod:`hkpd.prediction.network_lean`).
 
 The copy is framed by the crop rule (:meth:`hkpd.prediction.crop.CropTransform.from_keypoints`)
 on the keypoints the crop itself was framed on, when the caller has them (``crop_keypoints``:
@@ -28,8 +30,10 @@ from dataclasses import replace
 import numpy as np
 import torch
 
+from hkpd.body import BodyModel
 from hkpd.conditioning import EvidenceConfig
 from hkpd.network.output import NetworkOutput
+from hkpd.prediction.network_lean import LEAN_REREADINGS, mode_torso_tilts
 from hkpd.prediction.upright_view import UprightView, torso_tilt
 from hkpd.proxy import NUM_KEYPOINTS, assemble_proxy, proxy_image_planes
 from hkpd.proxy.heatmaps import heatmap_peaks
@@ -44,6 +48,11 @@ class UprightReader(torch.nn.Module):
     Args:
         network: a :class:`hkpd.network.DistributionNetwork` (its ``config`` is exposed).
         threshold_degrees: lean above which an example is turned upright.
+        lean_from_network: for examples whose heatmaps show no torso, take the lean from the
+            network's own reading (:mod:`hkpd.prediction.network_lean`); False reads them as
+            they are.
+        body: the body model that poses those readings (on the network's device); None: the
+            shipped one, loaded when first needed.
 
     Attributes:
         last_tilts_degrees: ``(B,)`` float64 of the last call: the lean undone per example (NaN
@@ -51,7 +60,11 @@ class UprightReader(torch.nn.Module):
     """
 
     def __init__(
-        self, network: torch.nn.Module, threshold_degrees: float = UPRIGHT_READING_DEGREES
+        self,
+        network: torch.nn.Module,
+        threshold_degrees: float = UPRIGHT_READING_DEGREES,
+        lean_from_network: bool = True,
+        body: BodyModel | None = None,
     ) -> None:
         super().__init__()
         if not 0.0 <= threshold_degrees <= 180.0:
@@ -59,6 +72,8 @@ class UprightReader(torch.nn.Module):
         self.network = network
         self.config = network.config
         self.threshold = math.radians(threshold_degrees)
+        self.lean_from_network = lean_from_network
+        self.body = body
         self.last_tilts_degrees = np.empty(0)
 
     def forward(
@@ -82,15 +97,57 @@ class UprightReader(torch.nn.Module):
         size = int(proxy.shape[-1])
         views: dict[int, UprightView] = {}
         self.last_tilts_degrees = np.full(proxy.shape[0], np.nan)
+        leanless = []
         for index in range(proxy.shape[0]):
             tilt = torso_tilt(points[index], observed[index])
-            if tilt is not None and abs(tilt) > self.threshold:
-                views[index] = (
-                    UprightView.from_tilt(tilt, points[index], size, observed[index])
-                    if framing is None
-                    else UprightView.from_tilt(tilt, framing[index], size)
-                )
-                self.last_tilts_degrees[index] = math.degrees(tilt)
+            if tilt is None:
+                leanless.append(index)
+            elif abs(tilt) > self.threshold:
+                views[index] = _view(tilt, points[index], observed[index], framing, index, size)
+        if leanless and self.lean_from_network:
+            views |= self._views_from_network_lean(
+                proxy[leanless], points[leanless], observed[leanless], framing, leanless
+            )
+        for index, view in views.items():
+            self.last_tilts_degrees[index] = math.degrees(view.tilt)
+        return self._read(proxy, points, present, views)
+
+    def _views_from_network_lean(
+        self,
+        proxy: torch.Tensor,
+        points: np.ndarray,
+        observed: np.ndarray,
+        framing: np.ndarray | None,
+        indices: list[int],
+    ) -> dict[int, UprightView]:
+        """Views for examples whose keypoints show no torso (``proxy`` holds just those, in the
+        order of ``indices``): turned by the lean of the network's own reading, read again
+        :data:`LEAN_REREADINGS` times (:mod:`hkpd.prediction.network_lean`)."""
+        present, size = torch.as_tensor(observed), int(proxy.shape[-1])
+        if self.body is None:
+            self.body = BodyModel().to(proxy.device)
+        views: dict[int, UprightView] = {}
+        output = self.network(proxy)
+        for reading in range(LEAN_REREADINGS):
+            if reading:  # the last views are read by the caller, with the whole batch
+                output = self._read(proxy, points, present, views)
+            tilts = mode_torso_tilts(output, self.body, size)
+            views = {
+                row: _view(tilt, points[row], observed[row], framing, indices[row], size)
+                for row, tilt in enumerate(tilts)
+                if tilt is not None and abs(tilt) > self.threshold
+            }
+        return {indices[row]: view for row, view in views.items()}
+
+    def _read(
+        self,
+        proxy: torch.Tensor,
+        points: np.ndarray,
+        present: torch.Tensor,
+        views: dict[int, UprightView],
+    ) -> NetworkOutput:
+        """The network's output for ``proxy``, the examples in ``views`` read from their upright
+        copies and mapped back to their crops' frames."""
         if not views:
             return self.network(proxy)
         turned = proxy.clone()
@@ -108,3 +165,19 @@ class UprightReader(torch.nn.Module):
                 output.global_orient[index], output.camera[index]
             )
         return replace(output, global_orient=orient, camera=camera)
+
+
+def _view(
+    tilt: float,
+    points: np.ndarray,
+    observed: np.ndarray,
+    framing: np.ndarray | None,
+    index: int,
+    size: int,
+) -> UprightView:
+    """The upright copy undoing ``tilt`` for example ``index`` of a batch of ``size`` crops:
+    framed on its crop keypoints (``framing[index]``) when known, else on its observed heatmap
+    peaks (``points``, ``observed``: that example's)."""
+    if framing is None:
+        return UprightView.from_tilt(tilt, points, size, observed)
+    return UprightView.from_tilt(tilt, framing[index], size)

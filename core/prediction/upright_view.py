@@ -106,6 +106,11 @@ class UprightView:
         return cls(rotation, box, size)
 
     @property
+    def tilt(self) -> float:
+        """The lean this view undoes, radians clockwise on screen (as :func:`torso_tilt`)."""
+        return math.atan2(float(self.rotation[0, 1]), float(self.rotation[0, 0]))
+
+    @property
     def scale(self) -> float:
         """``k``: upright-copy NDC per crop NDC."""
         return self.size / self.box.side
