@@ -303,17 +303,7 @@ class ExplorerPanels:
 
     def show_source(self, posterior) -> None:
         """Which distribution is shown, and why when the evidence fit fell back."""
-        reason = getattr(posterior, "fallback_reason", None)
-        if reason:
-            self.source.content = f"*Network only: {reason}.*"
-        elif getattr(posterior, "conditioned", False):
-            fit = posterior.evidence_fit
-            self.source.content = (
-                f"*Conditioned on {fit.evidence_count} keypoints "
-                f"(fit {fit.seconds * 1000:.0f} ms).*"
-            )
-        else:
-            self.source.content = "*Network only.*"
+        self.source.content = source_text(posterior)
 
     def _reset_concentrations(self) -> None:
         changed = self.app.state.reset_concentrations()
@@ -451,3 +441,20 @@ class ExplorerPanels:
 
     def show_status(self, text: str) -> None:
         self.status.content = text
+
+
+def source_text(posterior) -> str:
+    """The status line for a posterior: which distribution is shown, why when the evidence fit
+    fell back, and whether the network read a copy of the crop turned upright."""
+    reason = getattr(posterior, "fallback_reason", None)
+    if reason:
+        text = f"Network only: {reason}."
+    elif getattr(posterior, "conditioned", False):
+        fit = posterior.evidence_fit
+        text = f"Conditioned on {fit.evidence_count} keypoints (fit {fit.seconds * 1000:.0f} ms)."
+    else:
+        text = "Network only."
+    tilt = getattr(posterior, "upright_tilt_degrees", None)
+    if tilt is not None:
+        text += f" The person leans {abs(tilt):.0f}°: read from a copy turned upright."
+    return f"*{text}*"

@@ -311,3 +311,19 @@ def test_a_silhouette_model_is_refused_at_start(tmp_path) -> None:
     )
     with pytest.raises(ValueError, match="no person segmentation"):
         PredictorProvider(model, device="cpu")
+
+
+def test_the_status_says_which_distribution_and_whether_it_was_read_upright() -> None:
+    from types import SimpleNamespace
+
+    from hkpd.explorer.panels import source_text
+
+    fit = SimpleNamespace(evidence_count=15, seconds=0.043)
+    conditioned = SimpleNamespace(
+        fallback_reason=None, conditioned=True, evidence_fit=fit, upright_tilt_degrees=None
+    )
+    assert source_text(conditioned) == "*Conditioned on 15 keypoints (fit 43 ms).*"
+    lying = SimpleNamespace(fallback_reason=None, conditioned=False, upright_tilt_degrees=-87.4)
+    assert "Network only." in source_text(lying) and "leans 87°" in source_text(lying)
+    fallback = SimpleNamespace(fallback_reason="only 2 keypoints", upright_tilt_degrees=None)
+    assert source_text(fallback) == "*Network only: only 2 keypoints.*"
