@@ -30,24 +30,30 @@ def rolled_frontal(degrees: float) -> torch.Tensor:
 
 class LimbLeanNetwork(torch.nn.Module):
     """Answers a body in the rest pose, facing the camera and leaning as the line from the
-    ankles' heatmap peaks to the elbows' and wrists' leans in its input: a network that reads
-    what it is shown, whatever the orientation. ``leans`` records each answer (degrees)."""
+    ankles' heatmap peaks to the elbows' and wrists' leans in its input, when that lean is
+    within ``reads_within_degrees`` of upright; beyond it, upright (as a network that never
+    learnt leaning people). ``leans`` records each lean shown (degrees), ``answers`` each answer.
+    """
 
-    def __init__(self, image_size: int) -> None:
+    def __init__(self, image_size: int, reads_within_degrees: float = 180.0) -> None:
         super().__init__()
         self.config = NetworkConfig(backbone_base_width=8, image_size=image_size)
+        self.reads_within_degrees = reads_within_degrees
         self.leans: list[list[float]] = []
+        self.answers: list[list[float]] = []
 
     def forward(self, proxy: torch.Tensor) -> NetworkOutput:
         points, _ = heatmap_peaks(proxy[:, proxy.shape[1] - NUM_KEYPOINTS :])
         direction = points[:, list(UPPER_LIMBS)].mean(1) - points[:, list(FEET)].mean(1)
         leans = [math.degrees(math.atan2(float(du), -float(dv))) for du, dv in direction]
         self.leans.append(leans)
+        answers = [lean if abs(lean) <= self.reads_within_degrees else 0.0 for lean in leans]
+        self.answers.append(answers)
         count = proxy.shape[0]
         return NetworkOutput(
             F=torch.eye(3).expand(count, 23, 3, 3) * 1000.0,
             shape_mean=torch.zeros(count, 10),
             shape_std=torch.ones(count, 10),
-            global_orient=torch.stack([rolled_frontal(lean) for lean in leans]),
+            global_orient=torch.stack([rolled_frontal(answer) for answer in answers]),
             camera=torch.tensor([1.0, 0.0, 0.0]).expand(count, 3).clone(),
         )

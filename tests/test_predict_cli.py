@@ -503,7 +503,7 @@ def test_a_lying_person_is_read_by_the_network_from_an_upright_copy(scene, check
     torch.testing.assert_close(standing.global_orient, torch.eye(3), rtol=0, atol=0)
 
 
-def test_without_a_torso_in_the_evidence_the_lean_comes_from_the_networks_reading(scene):
+def test_without_a_torso_in_the_evidence_the_lean_is_the_one_that_fits_what_is_shown(scene):
     from limb_lean_network import LimbLeanNetwork
 
     from hkpd.prediction.predictor import Predictor
@@ -514,16 +514,18 @@ def test_without_a_torso_in_the_evidence_the_lean_comes_from_the_networks_readin
     keypoints = np.stack([height - 1 - v, u], -1)
     limbs_only = np.zeros(17)
     limbs_only[[7, 8, 9, 10, 15, 16]] = 1.0  # elbows, wrists, ankles: no torso, no stand-in
-    network = LimbLeanNetwork(64)
+    network = LimbLeanNetwork(64, reads_within_degrees=40.0)  # reads lying people as upright
     predictor = Predictor(network, "cpu", detector=TruthDetector(keypoints, limbs_only))
 
     read = predictor.predict(lying, evidence=False)
-    assert abs(read.upright_tilt_degrees - 90.0) < 10.0, read.upright_tilt_degrees
-    assert abs(network.leans[-1][-1]) < 10.0  # the last copy showed the person upright
+    assert abs(read.upright_tilt_degrees - 90.0) <= 40.0, read.upright_tilt_degrees
+    assert abs(network.leans[-1][-1]) <= 40.0  # the copy read showed the person near upright
     rotation = read.global_orient.double()
     turned = math.degrees(math.atan2(float(rotation[1, 0]), float(rotation[0, 0])))
     assert abs(abs(turned) - 90.0) < 10.0  # the upright answer, mapped back: lying
     as_is = predictor.predict(lying, evidence=False, upright=False)
     assert as_is.upright_tilt_degrees is None
     predictor.detector = TruthDetector(scene.keypoints2d, limbs_only)
-    assert predictor.predict(scene.image, evidence=False).upright_tilt_degrees is None
+    standing = predictor.predict(scene.image, evidence=False).global_orient.double()
+    # Whichever copy fits best, the standing person comes back standing.
+    assert abs(math.degrees(math.atan2(float(standing[1, 0]), float(standing[0, 0])))) < 10.0

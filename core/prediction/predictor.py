@@ -37,7 +37,12 @@ from hkpd.network.output import NetworkOutput
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
-from hkpd.prediction.network_lean import LEAN_REREADINGS, mode_torso_tilts
+from hkpd.prediction.network_lean import (
+    LEAN_CANDIDATES_DEGREES,
+    TURNED_FIT_MARGIN,
+    mode_keypoint_misfits,
+    mode_torso_tilts,
+)
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.upright_view import UprightView, torso_tilt
 from hkpd.proxy import build_proxy
@@ -208,29 +213,40 @@ class Predictor:
         return UprightView.from_tilt(tilt, prepared.box_keypoints_crop, self.crop_size)
 
     def _view_from_network_lean(self, prepared: NetworkInput) -> UprightView | None:
-        """For a crop whose evidence shows no torso: the upright copy turned by the lean of the
-        network's own reading, refined over :data:`LEAN_REREADINGS` readings
-        (:mod:`hkpd.prediction.network_lean`); None when the body it reads stands within the
-        threshold of upright."""
-        view = None
-        output = self.network(prepared.proxy[None].to(self.device))
-        for reading in range(LEAN_REREADINGS):
-            if reading:
-                turned = _upright_proxy(view, prepared, self.image_proxy)[None]
-                output = self.network(turned.to(self.device))
-                orient, camera = view.to_crop_frame(
-                    output.global_orient[0].cpu(), output.camera[0].cpu()
-                )
-                output = replace(
-                    output,
-                    global_orient=orient[None].to(self.device),
-                    camera=camera[None].to(self.device),
-                )
-            (tilt,) = mode_torso_tilts(output, self.body, self.crop_size)
-            if tilt is None or abs(tilt) <= self._upright_threshold:
-                return None
-            view = self._upright_view(tilt, prepared)
-        return view
+        """For a crop whose evidence shows no torso: the upright copy turned by the lean, among
+        :data:`LEAN_CANDIDATES_DEGREES` and the lean of the network's own reading, whose reading
+        fits the shown keypoints best (:mod:`hkpd.prediction.network_lean`); None unless it fits
+        them :data:`TURNED_FIT_MARGIN` closer than the crop read as it is."""
+        keypoints = prepared.keypoints_crop[None]
+        observed = (prepared.confidences > 0)[None]
+        as_it_is = self.network(prepared.proxy[None].to(self.device))
+        best = mode_keypoint_misfits(as_it_is, self.body, self.crop_size, keypoints, observed)[0]
+        leans = [math.radians(degrees) for degrees in LEAN_CANDIDATES_DEGREES]
+        (own_lean,) = mode_torso_tilts(as_it_is, self.body, self.crop_size)
+        if own_lean is not None and abs(own_lean) > self._upright_threshold:
+            leans.append(own_lean)
+        views = [self._upright_view(lean, prepared) for lean in leans]
+        turned = torch.stack([_upright_proxy(view, prepared, self.image_proxy) for view in views])
+        output = self.network(turned.to(self.device))
+        mapped = [
+            view.to_crop_frame(output.global_orient[index].cpu(), output.camera[index].cpu())
+            for index, view in enumerate(views)
+        ]
+        output = replace(
+            output,
+            global_orient=torch.stack([orient for orient, _ in mapped]).to(self.device),
+            camera=torch.stack([camera for _, camera in mapped]).to(self.device),
+        )
+        count = len(views)
+        misfits = mode_keypoint_misfits(
+            output,
+            self.body,
+            self.crop_size,
+            np.repeat(keypoints, count, 0),
+            np.repeat(observed, count, 0),
+        )
+        winner = int(np.argmin(misfits))
+        return views[winner] if misfits[winner] < (1.0 - TURNED_FIT_MARGIN) * best else None
 
     def _posterior(
         self,

@@ -7,8 +7,8 @@ copy turned upright (:class:`hkpd.prediction.upright_view.UprightView`: the edge
 whichever image proxy the network reads) warped, the heatmaps drawn again at the turned
 keypoints) and its global rotation and camera are mapped back to the original frame.
 Relative joint rotations and shape do not depend on the view. Examples whose heatmaps show no
-torso are turned by the lean of the network's own reading instead
-(:mod:`hkpd.prediction.network_lean`).
+torso are read at several leans and turned by the one whose reading fits the shown keypoints
+best (:mod:`hkpd.prediction.network_lean`).
 
 The copy is framed by the crop rule (:meth:`hkpd.prediction.crop.CropTransform.from_keypoints`)
 on the keypoints the crop itself was framed on, when the caller has them (``crop_keypoints``:
@@ -33,7 +33,12 @@ import torch
 from hkpd.body import BodyModel
 from hkpd.conditioning import EvidenceConfig
 from hkpd.network.output import NetworkOutput
-from hkpd.prediction.network_lean import LEAN_REREADINGS, mode_torso_tilts
+from hkpd.prediction.network_lean import (
+    LEAN_CANDIDATES_DEGREES,
+    TURNED_FIT_MARGIN,
+    mode_keypoint_misfits,
+    mode_torso_tilts,
+)
 from hkpd.prediction.upright_view import UprightView, torso_tilt
 from hkpd.proxy import NUM_KEYPOINTS, assemble_proxy, proxy_image_planes
 from hkpd.proxy.heatmaps import heatmap_peaks
@@ -121,23 +126,42 @@ class UprightReader(torch.nn.Module):
         indices: list[int],
     ) -> dict[int, UprightView]:
         """Views for examples whose keypoints show no torso (``proxy`` holds just those, in the
-        order of ``indices``): turned by the lean of the network's own reading, read again
-        :data:`LEAN_REREADINGS` times (:mod:`hkpd.prediction.network_lean`)."""
+        order of ``indices``): each read as it is, at every lean of
+        :data:`LEAN_CANDIDATES_DEGREES` and at the lean of its own reading (when beyond the
+        threshold); the reading whose
+        most likely body fits the shown keypoints best wins, if it fits them
+        :data:`TURNED_FIT_MARGIN` closer than the reading as it is."""
         present, size = torch.as_tensor(observed), int(proxy.shape[-1])
         if self.body is None:
             self.body = BodyModel().to(proxy.device)
-        views: dict[int, UprightView] = {}
-        output = self.network(proxy)
-        for reading in range(LEAN_REREADINGS):
-            if reading:  # the last views are read by the caller, with the whole batch
-                output = self._read(proxy, points, present, views)
-            tilts = mode_torso_tilts(output, self.body, size)
+        as_it_is = self.network(proxy)
+        as_it_is_misfits = mode_keypoint_misfits(as_it_is, self.body, size, points, observed)
+        best = np.full(len(indices), np.inf)
+        chosen: dict[int, UprightView] = {}
+        own_leans = [
+            lean if lean is not None and abs(lean) > self.threshold else None
+            for lean in mode_torso_tilts(as_it_is, self.body, size)
+        ]
+        candidates = [[math.radians(degrees)] * len(indices) for degrees in LEAN_CANDIDATES_DEGREES]
+        candidates.append(own_leans)
+        for leans in candidates:
             views = {
-                row: _view(tilt, points[row], observed[row], framing, indices[row], size)
-                for row, tilt in enumerate(tilts)
-                if tilt is not None and abs(tilt) > self.threshold
+                row: _view(lean, points[row], observed[row], framing, indices[row], size)
+                for row, lean in enumerate(leans)
+                if lean is not None
             }
-        return {indices[row]: view for row, view in views.items()}
+            if not views:
+                continue
+            output = self._read(proxy, points, present, views)
+            misfits = mode_keypoint_misfits(output, self.body, size, points, observed)
+            for row, view in views.items():
+                if misfits[row] < best[row]:
+                    best[row], chosen[row] = misfits[row], view
+        return {
+            indices[row]: view
+            for row, view in chosen.items()
+            if best[row] < (1.0 - TURNED_FIT_MARGIN) * as_it_is_misfits[row]
+        }
 
     def _read(
         self,
