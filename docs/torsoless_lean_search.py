@@ -9,7 +9,8 @@ as it is), maps every reading back to the crop's frame, and keeps the one whose 
 body projects closest to the observed heatmap peaks (mean pixel distance over the observed
 keypoints; no ground truth is used to choose). It prints the mean 2D mode error (px at 256) of:
 today's reading, the reading turned by the true lean, the best of the twelve in hindsight, and
-the one chosen by fit. Not wired into the predictor yet (see the session notes / model card).
+the one chosen by fit. The upright reading and the predictor now choose so
+(:mod:`hkpd.prediction.network_lean`; model card, section 5).
 
     python docs/torsoless_lean_search.py assets/models/hkpd_hierarchical.pt --poses poses.npz
 """
