@@ -66,6 +66,7 @@ def truncated_poses(tmp_path_factory) -> Path:
         (["--log-every", "0"], "--log-every must be an integer >= 1"),
         (["--checkpoint-every", "0"], "--checkpoint-every must be an integer >= 1"),
         (["--learning-rate", "inf"], "--learning-rate must be a finite number > 0"),
+        (["--mode-loss-weight", "-1"], "--mode-loss-weight must be a finite number >= 0"),
         (["--device", "tpu"], "--device must be auto, cpu"),
         (["--steps", "0"], "--steps must be an integer >= 1"),
         (["--steps", "-5"], "--steps must be an integer >= 1"),

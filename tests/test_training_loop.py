@@ -89,6 +89,9 @@ def test_schedule_stages_follow_the_config() -> None:
     heavier = build_schedule(TrainConfig(samples_loss_from=5, samples_loss_weight=4000.0))
     assert heavier.weights_at(10).joints2d_samples == 4000.0
     assert heavier.weights_at(10).joints2d_mode == LossWeights().joints2d_mode
+    mode_heavier = build_schedule(TrainConfig(mode_loss_weight=8000.0))
+    assert mode_heavier.weights_at(0).joints2d_mode == 8000.0
+    assert mode_heavier.weights_at(10**6).joints2d_samples == LossWeights().joints2d_samples
     never = build_schedule(TrainConfig(samples_loss_from=-1, joints3d_loss_from=-1))
     assert never.weights_at(10**6).joints2d_samples == 0
 

@@ -50,6 +50,9 @@ class TrainConfig:
             :class:`hkpd.training.schedule.LossWeights`'s, equal to the 2D mode loss's). Larger
             values pull samples harder towards *visible* keypoints, i.e. sharpen the
             distribution where the image shows the body, and leave hidden joints to the NLL.
+        mode_loss_weight: weight of the 2D keypoint loss of the most likely body (the mode pose
+            with the mean shape), on from the first step. Larger values make the mode follow
+            the keypoint heatmaps more closely rather than the pose prior the network learnt.
         joints3d_loss_from: step at which the 3D joint loss starts (stage 3); -1 never.
         device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
         amp: mixed precision on CUDA (ignored on CPU).
@@ -117,6 +120,7 @@ class TrainConfig:
     samples_loss_from: int = 2_000
     joints3d_loss_from: int = 10_000
     samples_loss_weight: float = 1000.0
+    mode_loss_weight: float = 1000.0
     device: str = "auto"
     amp: bool = True
     seed: int = 0
@@ -157,9 +161,10 @@ class TrainConfig:
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{_flag(name)} must be a finite number > 0, got {value}")
-        if not (math.isfinite(self.samples_loss_weight) and self.samples_loss_weight >= 0):
-            weight = self.samples_loss_weight
-            raise ValueError(f"--samples-loss-weight must be a finite number >= 0, got {weight}")
+        for name in ("samples_loss_weight", "mode_loss_weight"):
+            weight = getattr(self, name)
+            if not (math.isfinite(weight) and weight >= 0):
+                raise ValueError(f"{_flag(name)} must be a finite number >= 0, got {weight}")
         probabilities = ("limb_occlusion_probability", "roll_probability",
                          "steep_view_probability", "archetype_share", "limb_mix_share",
                          "keypoint_outlier_probability")  # fmt: skip

@@ -68,10 +68,12 @@ class TrainingResult:
 def build_schedule(config: TrainConfig, weights: LossWeights | None = None) -> LossSchedule:
     """The paper's staged losses with the config's boundaries (-1 switches a stage off).
 
-    ``weights`` (default: :class:`LossWeights` with the config's ``samples_loss_weight``) are the
-    weights of every term once it is on.
+    ``weights`` (default: :class:`LossWeights` with the config's ``samples_loss_weight`` and
+    ``mode_loss_weight``) are the weights of every term once it is on.
     """
-    full = weights or LossWeights(joints2d_samples=config.samples_loss_weight)
+    full = weights or LossWeights(
+        joints2d_samples=config.samples_loss_weight, joints2d_mode=config.mode_loss_weight
+    )
     events = []
     if config.samples_loss_from >= 0:
         events.append((config.samples_loss_from, "joints2d_samples"))
