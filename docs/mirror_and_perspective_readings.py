@@ -29,13 +29,13 @@ Results and what they mean: model card, section 5 ("Readings that need no retrai
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import roma
 import torch
+from experiment_arguments import parse_experiment_arguments
 
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
@@ -185,11 +185,7 @@ def _split_errors(checkpoint: Path, poses: Path | None, count: int, orientation)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("checkpoint", type=Path)
-    parser.add_argument("--poses", type=Path, help="pose bank (its test split); else procedural")
-    parser.add_argument("--count", type=int, default=1000)
-    arguments = parser.parse_args(argv)
+    arguments = parse_experiment_arguments(__doc__.splitlines()[0], argv)
     torch.set_num_threads(1)
     splits = {"upright": None, "any orientation": ANY_ORIENTATION}
     results = {

@@ -17,13 +17,12 @@ the one chosen by fit. The upright reading and the predictor now choose so
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import torch
+from experiment_arguments import parse_experiment_arguments
 
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
@@ -96,11 +95,7 @@ def _torsoless_errors(reader: UprightReader, body, batch) -> tuple[np.ndarray, .
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("checkpoint", type=Path)
-    parser.add_argument("--poses", type=Path, help="pose bank (its test split); else procedural")
-    parser.add_argument("--count", type=int, default=1000)
-    arguments = parser.parse_args(argv)
+    arguments = parse_experiment_arguments(__doc__.splitlines()[0], argv)
     network, generator = _network_and_test_generator(
         arguments.checkpoint, arguments.poses, "cpu", orientation=ANY_ORIENTATION
     )

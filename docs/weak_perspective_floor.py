@@ -13,12 +13,11 @@ heatmaps, body axis more than 40° out of the picture (steep), the rest. Model c
 
 from __future__ import annotations
 
-import argparse
 import math
-from pathlib import Path
 
 import numpy as np
 import torch
+from experiment_arguments import parse_experiment_arguments
 
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, pixels_to_ndc
@@ -74,11 +73,7 @@ def view_kinds(batch: TrainingBatch) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("checkpoint", type=Path)
-    parser.add_argument("--poses", type=Path, help="pose bank (its test split); else procedural")
-    parser.add_argument("--count", type=int, default=1000)
-    arguments = parser.parse_args(argv)
+    arguments = parse_experiment_arguments(__doc__.splitlines()[0], argv)
     torch.manual_seed(0)
     print("| split | views | share | floor: true body, best weak-perspective camera (px) "
           "| network, read upright (px) | network's own part (px, in quadrature) |")  # fmt: skip
