@@ -3,7 +3,7 @@ network, and with 2D evidence the keypoint fit), then mode + 100 samples + per-v
 uncertainty; network-only and evidence posteriors side by side.
 
 Usage: python benchmarks/bench_predictor.py [--model CKPT] [--photos DIR] [--repeats 5]
-       [--threads 2]
+       [--threads 2] [--no-mirror-reading]
 
 Without ``--photos`` it uses the explorer's built-in demo photo (rendered by hkpd itself).
 Prints a markdown table; results are recorded in docs/benchmarks.md.
@@ -35,9 +35,14 @@ def main() -> None:
     parser.add_argument("--photos", type=Path, help="folder of photos")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument(
+        "--no-mirror-reading", action="store_true", help="read each crop once, not also mirrored"
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    predictor = Predictor.from_pretrained(args.model, device="cpu")
+    predictor = Predictor.from_pretrained(
+        args.model, device="cpu", mirror_reading=not args.no_mirror_reading
+    )
     if args.photos:
         photos = sorted(p for p in args.photos.iterdir() if p.suffix.lower() in (".jpg", ".png"))
     else:
@@ -69,7 +74,8 @@ def main() -> None:
     load = os.getloadavg()[0]
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, load {load:.1f}, torch "
           f"{torch.__version__}, threads {args.threads}, network input "
-          f"{predictor.crop_size} px, {len(photos)} photo(s) x {args.repeats}")  # fmt: skip
+          f"{predictor.crop_size} px, mirror reading {predictor.mirror_reading}, "
+          f"{len(photos)} photo(s) x {args.repeats}")  # fmt: skip
     print()
     print("| step | median ms | best ms | target |")
     print("|---|---|---|---|")

@@ -3,19 +3,20 @@
 On the fixed synthetic test splits (upright and any orientation, read upright as
 ``hkpd-eval --upright-reading`` does), this script prints the mean 2D mode error (px at 256) of:
 
-1. **Mirrored reading.** The proxy flipped left to right (edge planes mirrored, the heatmaps of
-   left and right eyes, ears and limb keypoints swapped), read, and mapped back: relative
-   rotations of left and right joints swapped and conjugated by the reflection
-   ``diag(-1, 1, 1)`` (:func:`hkpd.poses.mirror.reflect_rotations`), the global rotation
-   conjugated likewise, the camera's x shift negated. A mirror-symmetric network would read
-   both equally well.
+1. **Mirrored reading.** The proxy flipped left to right and read, the reading mapped back
+   (:mod:`hkpd.prediction.mirror_reading`: heatmaps of left and right eyes, ears and limb
+   keypoints swapped; relative rotations of left and right joints swapped and conjugated by the
+   reflection ``diag(-1, 1, 1)``, the global rotation conjugated likewise, the camera's x shift
+   negated). A mirror-symmetric network would read both equally well.
 2. **Mirror-averaged reading.** The mean of the two readings' matrix-Fisher parameters ``F``
    (the family is closed under it; its mode is a weighted mean rotation), their global
    rotations projected back onto SO(3) and their cameras averaged.
 3. **Chosen by fit.** Of the reading as it is and the mirrored one, the one whose most likely
    body projects closest to the keypoints the heatmaps show
    (:func:`hkpd.prediction.network_lean.mode_keypoint_misfits`; no ground truth is used to
-   choose); and the best of the two in hindsight.
+   choose; the predictor's default since 2026-12-04,
+   :class:`hkpd.prediction.mirror_reading.MirrorChoosingReader`); and the best of the two in
+   hindsight.
 4. **Perspective projection.** The network's weak-perspective camera ``[s, tx, ty]`` read as a
    perspective camera at the synthetic crop's known focal length (depth ``2 f / (S s)``,
    principal point at the crop centre), and the floor of each camera model: the *true* body with
@@ -39,25 +40,15 @@ from experiment_arguments import parse_experiment_arguments
 
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
-from hkpd.coco_keypoints import COCO17_LEFT_RIGHT_PAIRS
 from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
 from hkpd.network.output import NetworkOutput
-from hkpd.poses.mirror import BODY_MIRROR_PERMUTATION, reflect_rotations
+from hkpd.prediction.mirror_reading import mirror_proxy, unmirror_output
 from hkpd.prediction.network_lean import mode_keypoint_misfits
 from hkpd.prediction.upright_reading import UprightReader
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
 from hkpd.synthesis.generator import iter_fixed_test_set
 from hkpd.synthesis.orientation import ANY_ORIENTATION
-
-_FACE_PAIRS = ((1, 2), (3, 4))  # eyes, ears: without them the mirrored face turns around
-
-
-def _mirrored_keypoint_order() -> list[int]:
-    order = list(range(NUM_KEYPOINTS))
-    for left, right in (*_FACE_PAIRS, *COCO17_LEFT_RIGHT_PAIRS):
-        order[left], order[right] = right, left
-    return order
 
 
 class MirroredReading(torch.nn.Module):
@@ -67,20 +58,9 @@ class MirroredReading(torch.nn.Module):
     def __init__(self, network: torch.nn.Module, average: bool) -> None:
         super().__init__()
         self.network, self.config, self.average = network, network.config, average
-        self.order = _mirrored_keypoint_order()
-        self.joints = torch.tensor(BODY_MIRROR_PERMUTATION)
 
     def forward(self, proxy: torch.Tensor) -> NetworkOutput:
-        planes = proxy.shape[1] - NUM_KEYPOINTS
-        heatmaps = proxy[:, planes:][:, self.order]
-        read = self.network(torch.cat([proxy[:, :planes], heatmaps], 1).flip(-1))
-        sign = torch.tensor([1.0, -1.0, 1.0], dtype=read.camera.dtype)
-        mirrored = replace(
-            read,
-            F=reflect_rotations(read.F[:, self.joints]),
-            global_orient=reflect_rotations(read.global_orient),
-            camera=read.camera * sign,
-        )
+        mirrored = unmirror_output(self.network(mirror_proxy(proxy)))
         if not self.average:
             return mirrored
         direct = self.network(proxy)

@@ -445,7 +445,7 @@ class ExplorerPanels:
 
 def source_text(posterior) -> str:
     """The status line for a posterior: which distribution is shown, why when the evidence fit
-    fell back, and whether the network read a copy of the crop turned upright."""
+    fell back, and whether the network read a copy of the crop turned upright or mirrored."""
     reason = getattr(posterior, "fallback_reason", None)
     if reason:
         text = f"Network only: {reason}."
@@ -457,4 +457,6 @@ def source_text(posterior) -> str:
     tilt = getattr(posterior, "upright_tilt_degrees", None)
     if tilt is not None:
         text += f" The person leans {abs(tilt):.0f}°: read from a copy turned upright."
+    if getattr(posterior, "mirror_read", False):
+        text += " Read from the mirror image (its body fits the keypoints better)."
     return f"*{text}*"

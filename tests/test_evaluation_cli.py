@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -266,19 +267,34 @@ def test_eval_scores_the_upright_reading_on_each_split(tmp_path) -> None:
     names = [line.split("|")[1].strip() for line in table.splitlines() if line.startswith("| ")]
     assert names[1:] == [
         str(checkpoint),
-        f"{checkpoint} (upright reading)",
+        f"{checkpoint} (upright + mirror reading)",
         f"{checkpoint} (any orientation)",
-        f"{checkpoint} (any orientation) (upright reading)",
+        f"{checkpoint} (any orientation) (upright + mirror reading)",
     ]
-    values = {
-        line.split("|")[1].strip(): line.split("|")[2:-1]
-        for line in table.splitlines()
-        if line.startswith(f"| {checkpoint}")
-    }
+
+    def rows_of(path: Path) -> dict[str, list[str]]:
+        table = path.read_text().split("All synthetic metrics")[0]
+        return {
+            line.split("|")[1].strip(): line.split("|")[2:-1]
+            for line in table.splitlines()
+            if line.startswith(f"| {checkpoint}")
+        }
+
+    values = rows_of(report)
     # The rolled views are read differently, so at least one 3D error moves.
     assert (
         values[f"{checkpoint} (any orientation)"]
-        != values[f"{checkpoint} (any orientation) (upright reading)"]
+        != values[f"{checkpoint} (any orientation) (upright + mirror reading)"]
+    )
+    once = tmp_path / "once.md"
+    arguments[-1] = str(once)
+    assert eval_main([*arguments, "--any-orientation", "--upright-reading",
+                      "--no-mirror-reading"]) == 0  # fmt: skip
+    read_once = rows_of(once)
+    assert f"{checkpoint} (any orientation) (upright reading)" in read_once
+    assert (
+        read_once[f"{checkpoint} (any orientation) (upright reading)"]
+        != values[f"{checkpoint} (any orientation) (upright + mirror reading)"]
     )
 
 

@@ -327,3 +327,7 @@ def test_the_status_says_which_distribution_and_whether_it_was_read_upright() ->
     assert "Network only." in source_text(lying) and "leans 87°" in source_text(lying)
     fallback = SimpleNamespace(fallback_reason="only 2 keypoints", upright_tilt_degrees=None)
     assert source_text(fallback) == "*Network only: only 2 keypoints.*"
+    mirrored = SimpleNamespace(
+        fallback_reason=None, conditioned=False, upright_tilt_degrees=None, mirror_read=True
+    )
+    assert "mirror image" in source_text(mirrored) and "mirror" not in source_text(lying)

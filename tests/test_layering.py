@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LAYERS: dict[str, int] = {
     # shared conventions and arithmetic
     "kinematic_tree": 0, "camera_conventions": 0, "coco_keypoints": 0, "devices": 0,
-    "cpu_allocator": 0, "alignment": 0, "uncertainty": 0,
+    "cpu_allocator": 0, "alignment": 0, "uncertainty": 0, "mirror_symmetry": 0,
     "distributions": 1,
     "body": 2,
     "poses": 3, "rendering": 3, "proxy": 3,

@@ -8,8 +8,8 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, SMPL_JOINT_NAMES
+from hkpd.mirror_symmetry import mirror_pose
 from hkpd.poses.frame_selection import select_distinct_frames
-from hkpd.poses.mirror import mirror_pose
 from hkpd.poses.subject_split import assign_splits, subject_of
 
 

@@ -382,6 +382,31 @@ def test_evidence_false_returns_the_networks_own_output_and_evidence_keeps_it(
     assert torch.isfinite(conditioned.F).all() and not torch.equal(conditioned.F, network_only.F)
 
 
+def test_the_predictor_keeps_the_reading_of_the_crop_or_of_its_mirror_image(scene, checkpoint):
+    from hkpd.prediction.mirror_reading import mirror_proxy, unmirror_output
+    from hkpd.prediction.predictor import Predictor
+    from hkpd.training.checkpoint import load_network
+
+    network, _ = load_network(checkpoint, "cpu")
+    detector = TruthDetector(scene.keypoints2d, confidences=np.ones(17))
+    once = Predictor(network, "cpu", detector=detector, mirror_reading=False)
+    twice = Predictor(network, "cpu", detector=detector)
+    read_once = once.predict(scene.image, evidence=False)
+    read_twice = twice.predict(scene.image, evidence=False)
+    assert not read_once.mirror_read
+    proxy = read_once.network_input.proxy[None]
+    with torch.no_grad():
+        direct, mirrored = network(proxy), unmirror_output(network(mirror_proxy(proxy)))
+    torch.testing.assert_close(read_once.F, direct.F[0], rtol=0, atol=0)
+    kept = mirrored if read_twice.mirror_read else direct
+    assert read_twice.mirror_read == bool(twice.network.last_mirrored[0])
+    torch.testing.assert_close(read_twice.F, kept.F[0], rtol=1e-5, atol=1e-4)
+    torch.testing.assert_close(read_twice.camera, kept.camera[0], rtol=1e-5, atol=1e-6)
+    # The evidence posterior records which reading its fit started from.
+    conditioned = twice.predict(scene.image)
+    assert conditioned.mirror_read == conditioned.prior.mirror_read == read_twice.mirror_read
+
+
 def test_too_little_evidence_falls_back_to_the_network_and_says_why(
     scene, checkpoint, fake_predictor_factory
 ):

@@ -101,6 +101,13 @@ def build_parser() -> argparse.ArgumentParser:
         "split and on --coco",
     )
     parser.add_argument(
+        "--no-mirror-reading",
+        action="store_true",
+        help="read the photos and the --upright-reading rows once, not also mirrored (by "
+        "default they are read as the predictor reads them: as they are and mirrored, keeping "
+        "the reading whose body fits the shown keypoints better)",
+    )
+    parser.add_argument(
         "--coco-turns",
         action="store_true",
         help="with --coco: also score every person on their photo turned by 90, 180 and 270 "
@@ -164,13 +171,16 @@ def evaluate_synthetic(
     concentration_scale: float = 1.0,
     orientation=None,
     upright_reading: bool = False,
+    mirror_reading: bool = False,
 ):
     """Metrics of one checkpoint on the fixed synthetic test set (3D in mm, 2D in px at 256),
     optionally with its F scaled (:mod:`hkpd.evaluation.concentration_scaling`) or on the
     any-orientation split (``orientation``, e.g.
     :data:`hkpd.synthesis.orientation.ANY_ORIENTATION`), optionally reading leaning people from
-    an upright copy (:class:`hkpd.prediction.upright_reading.UprightReader`)."""
+    an upright copy (:class:`hkpd.prediction.upright_reading.UprightReader`) and reading every
+    view mirrored too (:class:`hkpd.prediction.mirror_reading.MirrorChoosingReader`)."""
     from hkpd.evaluation.synthetic import evaluate_batches
+    from hkpd.prediction.mirror_reading import MirrorChoosingReader
     from hkpd.prediction.upright_reading import UprightReader
     from hkpd.synthesis.generator import iter_fixed_test_set
 
@@ -178,6 +188,8 @@ def evaluate_synthetic(
         checkpoint, poses, device, orientation=orientation
     )
     network = ConcentrationScaled(network, concentration_scale)
+    if mirror_reading:
+        network = MirrorChoosingReader(network, body=generator.body)
     if upright_reading:  # its copies framed like the test crops, on all 17 keypoints
         network = UprightReader(network, body=generator.body)
     batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
@@ -287,10 +299,13 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
                 for upright in readings:
                     if not split and not upright:
                         continue  # the rows above
-                    name = f"{checkpoint}{split}" + (" (upright reading)" if upright else "")
+                    mirror = upright and not arguments.no_mirror_reading
+                    reading = " (upright + mirror reading)" if mirror else " (upright reading)"
+                    name = f"{checkpoint}{split}" + (reading if upright else "")
                     rows[name] = evaluate_synthetic(
                         checkpoint, arguments.poses, arguments.count, arguments.samples,
                         device, orientation=orientation, upright_reading=upright,
+                        mirror_reading=mirror,
                     )  # fmt: skip
         source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
         report.append(
@@ -376,25 +391,27 @@ def _photo_rows(
     from hkpd.prediction.predictor import Predictor
 
     rows, occlusion_rows = {}, {}
+    mirror = not arguments.no_mirror_reading
+    read = ", mirror reading" if mirror else ""
     for checkpoint in arguments.checkpoints:
-        predictor = Predictor.from_pretrained(checkpoint, device=str(device))
+        predictor = Predictor.from_pretrained(checkpoint, device=str(device), mirror_reading=mirror)
         if not arguments.evidence:
-            rows[str(checkpoint)] = evaluate_photos(predictor, people)
+            rows[f"{checkpoint} (as cropped{read})"] = evaluate_photos(predictor, people)
             if arguments.upright_reading or turned:
-                rows[f"{checkpoint} (upright reading)"] = evaluate_photos(
+                rows[f"{checkpoint} (upright reading{read})"] = evaluate_photos(
                     predictor, people, upright=True
                 )
         else:
             from hkpd.evaluation.photo_occlusion import photo_occlusion_response
 
             for evidence, label in ((False, "network only"), (True, "2D evidence")):
-                name = f"{checkpoint} ({label})"
+                name = f"{checkpoint} ({label}{read})"
                 rows[name] = evaluate_photos(predictor, people, evidence=evidence)
                 occlusion_rows[name] = photo_occlusion_response(predictor, people, evidence)
         for degrees, turned_people in turned.items():
             for evidence in (False, True) if arguments.evidence else (False,):
                 label = "2D evidence" if evidence else "network only, read upright"
-                rows[f"{checkpoint} (turned {degrees}°, {label})"] = evaluate_photos(
+                rows[f"{checkpoint} (turned {degrees}°, {label}{read})"] = evaluate_photos(
                     predictor, turned_people, evidence=evidence, upright=True
                 )
         predictor.close()

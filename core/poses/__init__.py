@@ -2,10 +2,10 @@
 procedural fallback prior (the first stage of the synthetic-data flow: poses -> bodies ->
 images)."""
 
+from hkpd.mirror_symmetry import mirror_pose
 from hkpd.poses.bank import PoseBank
 from hkpd.poses.bank_builder import BuildSummary, build_pose_bank
 from hkpd.poses.bvh import BvhMotion, BvhParseError, BvhSkeleton, load_bvh, parse_bvh
-from hkpd.poses.mirror import mirror_pose
 from hkpd.poses.procedural import JOINT_LIMITS, JointLimit, ProceduralPosePrior
 from hkpd.poses.retargeting import RetargetedMotion, retarget
 from hkpd.poses.selection import pose_source

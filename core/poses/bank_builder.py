@@ -17,10 +17,10 @@ import roma
 import torch
 from tqdm import tqdm
 
+from hkpd.mirror_symmetry import mirror_pose
 from hkpd.poses.bank import PoseBank
 from hkpd.poses.bvh import BvhParseError, load_bvh
 from hkpd.poses.frame_selection import select_distinct_frames
-from hkpd.poses.mirror import mirror_pose
 from hkpd.poses.retargeting import retarget
 from hkpd.poses.subject_split import SPLIT_NAMES, assign_splits, subject_of
 

@@ -376,6 +376,7 @@ def _posterior_summary(posterior: BodyPosterior, evidence: bool) -> dict[str, ob
         "evidence_requested": evidence,
         "fallback_reason": posterior.fallback_reason,
         "upright_tilt_degrees": posterior.upright_tilt_degrees,
+        "mirror_read": posterior.mirror_read,
     }
     if posterior.evidence is not None:
         summary["evidence_keypoints"] = [int(i) for i in posterior.evidence.nonzero().flatten()]

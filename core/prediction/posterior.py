@@ -96,6 +96,10 @@ class BodyPosterior:
             degrees (the detected torso's lean, clockwise on screen, or, when the evidence shows
             no torso, the lean of the body the network read) and its answer was mapped back to
             the photo; None when it read the crop as it is.
+        mirror_read: the network's reading (for an evidence posterior: the reading its fit
+            started from) came from the left-right mirror image of the crop, mapped back,
+            because its body fitted the shown keypoints better than the reading of the crop
+            itself (:mod:`hkpd.prediction.mirror_reading`).
     """
 
     F: torch.Tensor
@@ -113,6 +117,7 @@ class BodyPosterior:
     evidence_fit: KeypointFit | None = None
     evidence: torch.Tensor | None = None
     upright_tilt_degrees: float | None = None
+    mirror_read: bool = False
 
     @property
     def conditioned(self) -> bool:

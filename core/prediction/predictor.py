@@ -36,6 +36,7 @@ from hkpd.network.checkpoint import load_network
 from hkpd.network.output import NetworkOutput
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
+from hkpd.prediction.mirror_reading import MirrorChoosingReader
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
 from hkpd.prediction.network_lean import (
     LEAN_CANDIDATES_DEGREES,
@@ -75,6 +76,9 @@ class Predictor:
         body: the body model (default: the shipped one).
         detector: the 2D keypoint detector (default: BlazePose, created on first use).
         evidence_config: how the keypoint evidence updates the network's distribution.
+        mirror_reading: let the network read every crop (and upright copy) as it is and
+            mirrored, keeping the reading whose most likely body fits the shown keypoints more
+            closely (:mod:`hkpd.prediction.mirror_reading`); False reads each once.
 
     Thread safety: ``predict`` may be called from several threads; calls are serialised.
     """
@@ -86,10 +90,13 @@ class Predictor:
         body: BodyModel | None = None,
         detector: KeypointDetector | None = None,
         evidence_config: EvidenceConfig | None = None,
+        mirror_reading: bool = True,
     ) -> None:
         self.device = torch.device(device)
-        self.network = network.to(self.device).eval()
+        network = network.to(self.device).eval()
         self.body = (body or BodyModel()).to(self.device)
+        self.mirror_reading = mirror_reading
+        self.network = MirrorChoosingReader(network, self.body) if mirror_reading else network
         self.detector = detector or KeypointDetector()
         self.crop_size = int(network.config.image_size)
         self.image_proxy = str(network.config.image_proxy)
@@ -99,17 +106,21 @@ class Predictor:
 
     @classmethod
     def from_pretrained(
-        cls, path: str | os.PathLike[str] | None = None, device: str = "auto"
+        cls,
+        path: str | os.PathLike[str] | None = None,
+        device: str = "auto",
+        mirror_reading: bool = True,
     ) -> Predictor:
         """Load a checkpoint (default: the shipped pretrained model).
 
         Args:
             path: a checkpoint written by ``hkpd-train`` or the shipped weights.
             device: ``auto`` (CUDA when available), ``cpu`` or ``cuda``.
+            mirror_reading: as for the constructor.
         """
         resolved = resolve_device(device)
         network, _ = load_network(Path(path) if path else shipped_model_path(), resolved)
-        return cls(network, resolved)
+        return cls(network, resolved, mirror_reading=mirror_reading)
 
     @torch.no_grad()
     def predict(
@@ -173,10 +184,12 @@ class Predictor:
                 tilt = view.tilt
                 proxies.append(_upright_proxy(view, prepared, self.image_proxy))
             output = self.network(torch.stack(proxies).to(self.device))
+            mirrored = self._mirrored(len(proxies))
             starts = _starts(output, view)
             if not evidence:  # the upright copy's reading when there is one
-                return self._posterior(starts, len(proxies) - 1, prepared, observed, tilt)
-            network_posterior = self._posterior(starts, 0, prepared, observed, tilt)
+                last = len(proxies) - 1
+                return self._posterior(starts, last, prepared, observed, tilt, mirrored[last])
+            network_posterior = self._posterior(starts, 0, prepared, observed, tilt, mirrored[0])
             keypoint_evidence = KeypointEvidence(
                 torch.as_tensor(prepared.keypoints_crop, dtype=torch.float64),
                 torch.as_tensor(observed),
@@ -187,7 +200,7 @@ class Predictor:
             )
         if fit.conditioned is None:
             return replace(network_posterior, evidence_fit=fit)
-        prior = self._posterior(starts, fit.start, prepared, observed, tilt)
+        prior = self._posterior(starts, fit.start, prepared, observed, tilt, mirrored[fit.start])
         conditioned = fit.conditioned
         return replace(
             prior,
@@ -200,6 +213,12 @@ class Predictor:
             prior=prior,
             evidence_fit=fit,
         )
+
+    def _mirrored(self, count: int) -> list[bool]:
+        """Which of the last network call's ``count`` readings came from the mirror image."""
+        if isinstance(self.network, MirrorChoosingReader):
+            return [bool(flag) for flag in self.network.last_mirrored]
+        return [False] * count
 
     @property
     def _upright_threshold(self) -> float:
@@ -255,11 +274,14 @@ class Predictor:
         prepared: NetworkInput,
         observed: np.ndarray,
         tilt: float | None,
+        mirror_read: bool = False,
     ) -> BodyPosterior:
         """The network's posterior of start ``index`` (0: the crop; 1: its upright copy,
-        already in the crop's frame, that undid ``tilt`` radians)."""
+        already in the crop's frame, that undid ``tilt`` radians), read from the mirror image
+        when ``mirror_read``."""
         return BodyPosterior(
             upright_tilt_degrees=math.degrees(tilt) if index == 1 and tilt is not None else None,
+            mirror_read=mirror_read,
             F=starts.F[index].float().to(self.device),
             shape_mean=starts.shape_mean[index].float().to(self.device),
             shape_std=starts.shape_std[index].float().to(self.device),
