@@ -110,6 +110,9 @@ def test_the_reader_keeps_whichever_reading_fits_the_shown_keypoints() -> None:
     torch.testing.assert_close(output.global_orient[0], reading.global_orient[0])
     torch.testing.assert_close(output.global_orient[1], unmirror_output(reading).global_orient[0])
     torch.testing.assert_close(output.camera[1], reading.camera[0] * torch.tensor([1, -1, 1.0]))
+    # The readings not kept are the other way round.
+    torch.testing.assert_close(reader.last_other.camera[0], output.camera[1])
+    torch.testing.assert_close(reader.last_other.camera[1], output.camera[0])
     nothing_shown = assemble_proxy(
         torch.zeros(1, 1, SIZE, SIZE, dtype=torch.uint8), points[:1], torch.zeros(1, 17, dtype=bool)
     )

@@ -74,6 +74,8 @@ class MirrorChoosingReader(torch.nn.Module):
     Attributes:
         last_mirrored: ``(B,)`` bool of the last call: which examples kept the mirrored
             reading.
+        last_other: the last call's readings that were not kept (each example's other one,
+            mapped to its proxy's frame); None before the first call.
     """
 
     def __init__(self, network: torch.nn.Module, body: BodyModel | None = None) -> None:
@@ -82,6 +84,7 @@ class MirrorChoosingReader(torch.nn.Module):
         self.config = network.config
         self.body = body
         self.last_mirrored = np.zeros(0, dtype=bool)
+        self.last_other: NetworkOutput | None = None
 
     def forward(self, proxy: torch.Tensor) -> NetworkOutput:
         """The chosen readings of ``(B, C + 17, S, S)`` proxies, each in its proxy's frame."""
@@ -99,16 +102,22 @@ class MirrorChoosingReader(torch.nn.Module):
         ]
         self.last_mirrored = misfits[1] < misfits[0]
         take = torch.as_tensor(self.last_mirrored, device=proxy.device)
-        return NetworkOutput(
-            **{
-                field.name: torch.where(
-                    take.view(-1, *[1] * (getattr(as_it_is, field.name).ndim - 1)),
-                    getattr(mirrored, field.name),
-                    getattr(as_it_is, field.name),
-                )
-                for field in fields(NetworkOutput)
-            }
-        )
+        self.last_other = _select(~take, mirrored, as_it_is)
+        return _select(take, mirrored, as_it_is)
+
+
+def _select(take: torch.Tensor, chosen: NetworkOutput, other: NetworkOutput) -> NetworkOutput:
+    """Per example, ``chosen``'s reading where ``take`` (``(B,)`` bool), else ``other``'s."""
+    return NetworkOutput(
+        **{
+            field.name: torch.where(
+                take.view(-1, *[1] * (getattr(chosen, field.name).ndim - 1)),
+                getattr(chosen, field.name),
+                getattr(other, field.name),
+            )
+            for field in fields(NetworkOutput)
+        }
+    )
 
 
 def _rows(output: NetworkOutput, rows: slice) -> NetworkOutput:
