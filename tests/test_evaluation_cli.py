@@ -246,8 +246,10 @@ def test_eval_with_evidence_scores_both_posteriors(tmp_path, capsys) -> None:
     arguments = [str(checkpoint), "--count", "4", "--samples", "3", "--out", str(report)]
     assert eval_main([*arguments, "--evidence", "--occlusion-cases", "2"]) == 0
     lines = report.read_text().splitlines()
-    evidence_rows = [line for line in lines if line.startswith(f"| {checkpoint} (2D evidence)")]
-    network_rows = [line for line in lines if line.startswith(f"| {checkpoint} (network only)")]
+    evidence_prefix = f"| {checkpoint} (2D evidence, mirror reading)"
+    network_prefix = f"| {checkpoint} (network only, mirror reading)"
+    evidence_rows = [line for line in lines if line.startswith(evidence_prefix)]
+    network_rows = [line for line in lines if line.startswith(network_prefix)]
     assert len(evidence_rows) == 2 and len(network_rows) == 1  # synthetic table + occlusion
     network = [float(cell) for cell in network_rows[0].strip("|").split("|")[1:-1]]
     evidence = [float(cell) for cell in evidence_rows[0].strip("|").split("|")[1:]]

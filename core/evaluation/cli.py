@@ -103,9 +103,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--no-mirror-reading",
         action="store_true",
-        help="read the photos and the --upright-reading rows once, not also mirrored (by "
-        "default they are read as the predictor reads them: as they are and mirrored, keeping "
-        "the reading whose body fits the shown keypoints better)",
+        help="read the photos, the --upright-reading rows and the --evidence rows once, not "
+        "also mirrored (by default they are read as the predictor reads them: as they are and "
+        "mirrored, keeping the reading whose body fits the shown keypoints better; the plain "
+        "synthetic and occlusion rows always read the network once, as the paper does)",
     )
     parser.add_argument(
         "--coco-turns",
@@ -322,12 +323,15 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             plot_2d_errors(rows, arguments.figure)
         if arguments.evidence:
             rows = {}
+            mirror = not arguments.no_mirror_reading
+            read = ", mirror reading" if mirror else ""
             for checkpoint in arguments.checkpoints:
                 both = evaluate_evidence_synthetic(
-                    checkpoint, arguments.poses, arguments.count, arguments.samples, device
-                )
-                rows[f"{checkpoint} (network only)"] = both["network"]
-                rows[f"{checkpoint} (2D evidence)"] = both["evidence"]
+                    checkpoint, arguments.poses, arguments.count, arguments.samples, device,
+                    mirror_reading=mirror,
+                )  # fmt: skip
+                rows[f"{checkpoint} (network only{read})"] = both["network"]
+                rows[f"{checkpoint} (2D evidence{read})"] = both["evidence"]
             report.append(
                 "### Synthetic test set with detector-like keypoint noise: network vs 2D "
                 "evidence (calibrated coverage 0.50 / "
@@ -368,10 +372,13 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             for factor in arguments.concentration_scale
         }
         if arguments.evidence:
+            mirror = not arguments.no_mirror_reading
+            read = ", mirror reading" if mirror else ""
             for checkpoint in arguments.checkpoints:
-                rows[f"{checkpoint} (2D evidence)"] = occlusion_summary(
-                    checkpoint, arguments.poses, arguments.occlusion_cases, device, evidence=True
-                )
+                rows[f"{checkpoint} (2D evidence{read})"] = occlusion_summary(
+                    checkpoint, arguments.poses, arguments.occlusion_cases, device,
+                    evidence=True, mirror_reading=mirror,
+                )  # fmt: skip
         report.append(
             f"### Occlusion response: {arguments.occlusion_cases} synthetic test images, one "
             "forearm or lower leg covered by a black box\n\n"
@@ -492,10 +499,14 @@ def occlusion_summary(
     device,
     concentration_scale: float = 1.0,
     evidence: bool = False,
+    mirror_reading: bool = False,
 ) -> dict:
     """:func:`hkpd.evaluation.occlusion_response.summarise` for one checkpoint (F optionally
-    scaled; or the keypoint-evidence posterior, conditioned on the present input keypoints)."""
+    scaled; or the keypoint-evidence posterior, conditioned on the present input keypoints;
+    optionally the network reading every view mirrored too, as the predictor does:
+    :class:`hkpd.prediction.mirror_reading.MirrorChoosingReader`)."""
     from hkpd.evaluation.occlusion_response import occlusion_response, summarise
+    from hkpd.prediction.mirror_reading import MirrorChoosingReader
     from hkpd.synthesis.augmentations import AugmentationConfig
 
     network, generator = _network_and_test_generator(
@@ -507,6 +518,8 @@ def occlusion_summary(
             f"{network.config.image_proxy!r} (evaluate it without --occlusion-cases)"
         )
     scaled = ConcentrationScaled(network, concentration_scale)
+    if mirror_reading:
+        scaled = MirrorChoosingReader(scaled, body=generator.body)
     condition = None
     if evidence:
         from hkpd.conditioning import EvidenceConfig
@@ -522,14 +535,23 @@ def occlusion_summary(
 
 
 def evaluate_evidence_synthetic(
-    checkpoint: Path, poses: Path | None, count: int, samples: int, device
+    checkpoint: Path,
+    poses: Path | None,
+    count: int,
+    samples: int,
+    device,
+    mirror_reading: bool = False,
 ) -> dict[str, dict[str, float]]:
     """Network-only and evidence posteriors on the fixed synthetic test set with detector-like
-    keypoint noise (:func:`hkpd.evaluation.evidence_synthetic.evaluate_evidence_batches`)."""
+    keypoint noise (:func:`hkpd.evaluation.evidence_synthetic.evaluate_evidence_batches`),
+    optionally with the network reading every view mirrored too (the predictor's default)."""
     from hkpd.evaluation.evidence_synthetic import evaluate_evidence_batches
+    from hkpd.prediction.mirror_reading import MirrorChoosingReader
     from hkpd.synthesis.generator import iter_fixed_test_set
 
     network, generator = _network_and_test_generator(checkpoint, poses, device)
+    if mirror_reading:
+        network = MirrorChoosingReader(network, body=generator.body)
     batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
     return evaluate_evidence_batches(network, batches, generator.body, num_samples=samples)
 
