@@ -90,8 +90,9 @@ def _visible_mean(pixels: torch.Tensor, batch, scale: float) -> np.ndarray:
     return ((error * visible).sum(1) / visible.sum(1).clamp(min=1)).numpy() * scale
 
 
-def _best_camera_error(points, batch, project, start: torch.Tensor, size: int) -> np.ndarray:
-    """The floor of one camera model: ``points`` (the true body) with its best camera."""
+def best_camera(points, batch, project, start: torch.Tensor, size: int) -> torch.Tensor:
+    """``(B, 3)`` the camera of model ``project`` that puts ``points`` (the true body) closest
+    to the batch's visible keypoints (L-BFGS from ``start``)."""
     camera = start.clone().requires_grad_(True)
     optimiser = torch.optim.LBFGS([camera], max_iter=60, line_search_fn="strong_wolfe")
     visible = batch.visible.float()
@@ -105,6 +106,12 @@ def _best_camera_error(points, batch, project, start: torch.Tensor, size: int) -
 
     with torch.enable_grad():
         optimiser.step(closure)
+    return camera.detach()
+
+
+def _best_camera_error(points, batch, project, start: torch.Tensor, size: int) -> np.ndarray:
+    """The floor of one camera model: ``points`` (the true body) with its best camera."""
+    camera = best_camera(points, batch, project, start, size)
     with torch.no_grad():
         return _visible_mean(ndc_to_pixels(project(points, camera), size), batch, CROP_SIZE / size)
 
