@@ -85,11 +85,7 @@ def main(argv: list[str] | None = None) -> int:
             kept = reader(batch.proxy)
             other = reader.last_other
             mirrored_share.append(reader.last_mirrored)
-            take = torch.as_tensor(reader.last_mirrored)
-            as_it_is = NetworkOutput(**{
-                name: torch.where(take.view(-1, *[1] * (getattr(kept, name).ndim - 1)),
-                                  getattr(other, name), getattr(kept, name))
-                for name in FIELDS})  # fmt: skip
+            as_it_is = network(batch.proxy)
             posteriors = {
                 rows[0]: _conditioned([as_it_is], detected, reported, size, body64, config),
                 rows[1]: _conditioned([kept], detected, reported, size, body64, config),

@@ -323,8 +323,7 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             plot_2d_errors(rows, arguments.figure)
         if arguments.evidence:
             rows = {}
-            mirror = not arguments.no_mirror_reading
-            read = ", mirror reading" if mirror else ""
+            mirror, read = _mirror_reading(arguments)
             for checkpoint in arguments.checkpoints:
                 both = evaluate_evidence_synthetic(
                     checkpoint, arguments.poses, arguments.count, arguments.samples, device,
@@ -372,8 +371,7 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
             for factor in arguments.concentration_scale
         }
         if arguments.evidence:
-            mirror = not arguments.no_mirror_reading
-            read = ", mirror reading" if mirror else ""
+            mirror, read = _mirror_reading(arguments)
             for checkpoint in arguments.checkpoints:
                 rows[f"{checkpoint} (2D evidence{read})"] = occlusion_summary(
                     checkpoint, arguments.poses, arguments.occlusion_cases, device,
@@ -389,6 +387,12 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
     return "\n".join(report)
 
 
+def _mirror_reading(arguments: argparse.Namespace) -> tuple[bool, str]:
+    """Whether the predictor-like rows read every view mirrored too, and their label suffix."""
+    mirror = not arguments.no_mirror_reading
+    return mirror, ", mirror reading" if mirror else ""
+
+
 def _photo_rows(
     arguments: argparse.Namespace, people: list, turned: dict[int, list], device: torch.device
 ) -> tuple[dict[str, dict[str, float]], dict[str, dict[str, float]]]:
@@ -398,8 +402,7 @@ def _photo_rows(
     from hkpd.prediction.predictor import Predictor
 
     rows, occlusion_rows = {}, {}
-    mirror = not arguments.no_mirror_reading
-    read = ", mirror reading" if mirror else ""
+    mirror, read = _mirror_reading(arguments)
     for checkpoint in arguments.checkpoints:
         predictor = Predictor.from_pretrained(checkpoint, device=str(device), mirror_reading=mirror)
         if not arguments.evidence:
