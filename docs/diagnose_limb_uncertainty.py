@@ -35,6 +35,7 @@ import roma
 import torch
 
 from hkpd.body import BodyModel
+from hkpd.distributions import BodyDistribution
 from hkpd.distributions.matrix_fisher import MatrixFisher
 from hkpd.evaluation.occlusion_response import (
     LIMB_PARTS,
@@ -45,7 +46,6 @@ from hkpd.evaluation.occlusion_response import (
 )
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
 from hkpd.network.checkpoint import load_network
-from hkpd.network.output import NetworkOutput
 from hkpd.poses import pose_source
 from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.augmentations import AugmentationConfig
@@ -66,7 +66,7 @@ def chain_to(joint: str) -> list[str]:
 
 
 def limb_spread(
-    output: NetworkOutput, poses: torch.Tensor, body: BodyModel, mask: torch.Tensor
+    output: BodyDistribution, poses: torch.Tensor, body: BodyModel, mask: torch.Tensor
 ) -> torch.Tensor:
     """``(B,)`` mean per-vertex uncertainty of the ``mask`` vertices, metres.
 
@@ -126,7 +126,7 @@ def main() -> None:
     spreads: dict[tuple[str, str], list[torch.Tensor]] = {}
     angles: dict[tuple[str, str], list[torch.Tensor]] = {}
     truths: list[torch.Tensor] = []
-    predicted: dict[str, list[NetworkOutput]] = {"clean": [], "covered": []}
+    predicted: dict[str, list[BodyDistribution]] = {"clean": [], "covered": []}
     for batch_index in range(args.batches):
         rendered = generator.generate(16, batch_seed(505, batch_index))
         covered = {item: cover_limb(rendered, item, args.limb) for item in range(16)}
@@ -142,7 +142,7 @@ def main() -> None:
         }
         truth = rendered.batch.body_pose[items]
         truths.append(truth)
-        outputs: dict[str, NetworkOutput] = {}
+        outputs: dict[str, BodyDistribution] = {}
         for view, proxy in proxies.items():
             output = outputs[view] = network(proxy)
             predicted[view].append(output)

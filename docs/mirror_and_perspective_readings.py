@@ -40,8 +40,8 @@ from experiment_arguments import parse_experiment_arguments
 
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
+from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
-from hkpd.network.output import NetworkOutput
 from hkpd.prediction.mirror_reading import mirror_proxy, unmirror_output
 from hkpd.prediction.network_lean import mode_keypoint_misfits
 from hkpd.prediction.upright_reading import UprightReader
@@ -59,7 +59,7 @@ class MirroredReading(torch.nn.Module):
         super().__init__()
         self.network, self.config, self.average = network, network.config, average
 
-    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+    def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         mirrored = unmirror_output(self.network(mirror_proxy(proxy)))
         if not self.average:
             return mirrored

@@ -25,12 +25,12 @@ import numpy as np
 import torch
 from experiment_arguments import parse_experiment_arguments
 
-from hkpd.conditioning import BodyEstimate, EvidenceConfig, KeypointEvidence, condition_on_keypoints
+from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
+from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
 from hkpd.evaluation.evidence_synthetic import float64_body
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
-from hkpd.network.output import NetworkOutput
 from hkpd.prediction.mirror_reading import MirrorChoosingReader
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
 from hkpd.synthesis.generator import iter_fixed_test_set
@@ -46,14 +46,14 @@ METRICS = {
 
 
 def _conditioned(
-    readings: list[NetworkOutput], detected, reported, size: int, body64, config
-) -> NetworkOutput:
+    readings: list[BodyDistribution], detected, reported, size: int, body64, config
+) -> BodyDistribution:
     """The evidence posterior of every example, fitted from the readings' starts (the
     first reading's own where the fit fails)."""
     first = readings[0]
     fields = {name: getattr(first, name).clone() for name in FIELDS}
     for item in range(first.batch_size):
-        starts = BodyEstimate(
+        starts = BodyDistribution(
             *(torch.cat([getattr(r, name)[item : item + 1] for r in readings]) for name in FIELDS)
         )
         evidence = KeypointEvidence(detected[item], reported[item], size)
@@ -61,7 +61,7 @@ def _conditioned(
         if fit.conditioned is not None:
             for name in FIELDS:
                 fields[name][item] = getattr(fit.conditioned, name).to(fields[name].dtype)
-    return NetworkOutput(**fields)
+    return BodyDistribution(**fields)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -26,10 +26,10 @@ from experiment_arguments import parse_experiment_arguments
 
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
+from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
-from hkpd.network.output import NetworkOutput
 from hkpd.prediction.upright_reading import UprightReader, _view
 from hkpd.prediction.upright_view import torso_tilt
 from hkpd.proxy import NUM_KEYPOINTS
@@ -60,7 +60,7 @@ def _torsoless_errors(reader: UprightReader, body, batch) -> tuple[np.ndarray, .
     targets = _rows_of(targets_of(batch), rows)
     scale = CROP_SIZE / size
 
-    def errors_and_misfits(output: NetworkOutput) -> tuple[np.ndarray, np.ndarray]:
+    def errors_and_misfits(output: BodyDistribution) -> tuple[np.ndarray, np.ndarray]:
         error = evaluate_prediction(output, body, targets, 0, size)["joint_error_2d_mode"]
         keypoints, _ = pelvis_relative_body(
             body, output.shape_mean, output.pose_distribution().mode, output.global_orient
@@ -74,7 +74,7 @@ def _torsoless_errors(reader: UprightReader, body, batch) -> tuple[np.ndarray, .
         ]
         return error.double().numpy() * scale, np.array(misfit) * scale
 
-    def read_at(leans: list[float | None]) -> NetworkOutput:
+    def read_at(leans: list[float | None]) -> BodyDistribution:
         views = {
             k: _view(lean, points[row], observed[row], framing, k, size)
             for k, (row, lean) in enumerate(zip(rows, leans, strict=True))

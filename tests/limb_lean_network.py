@@ -8,7 +8,8 @@ import math
 import torch
 
 from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT
-from hkpd.network import NetworkConfig, NetworkOutput
+from hkpd.distributions import BodyDistribution
+from hkpd.network import NetworkConfig
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
 
@@ -42,7 +43,7 @@ class LimbLeanNetwork(torch.nn.Module):
         self.leans: list[list[float]] = []
         self.answers: list[list[float]] = []
 
-    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+    def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         points, _ = heatmap_peaks(proxy[:, proxy.shape[1] - NUM_KEYPOINTS :])
         direction = points[:, list(UPPER_LIMBS)].mean(1) - points[:, list(FEET)].mean(1)
         leans = [math.degrees(math.atan2(float(du), -float(dv))) for du, dv in direction]
@@ -50,7 +51,7 @@ class LimbLeanNetwork(torch.nn.Module):
         answers = [lean if abs(lean) <= self.reads_within_degrees else 0.0 for lean in leans]
         self.answers.append(answers)
         count = proxy.shape[0]
-        return NetworkOutput(
+        return BodyDistribution(
             F=torch.eye(3).expand(count, 23, 3, 3) * 1000.0,
             shape_mean=torch.zeros(count, 10),
             shape_std=torch.ones(count, 10),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,7 +13,6 @@ import torch
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT, ndc_to_pixels
 from hkpd.conditioning import (
-    BodyEstimate,
     EvidenceConfig,
     KeypointEvidence,
     condition_on_keypoints,
@@ -20,7 +20,7 @@ from hkpd.conditioning import (
     matrix_fisher_from_precision,
 )
 from hkpd.conditioning.laplace import matrix_fisher_precision
-from hkpd.distributions import KinematicMatrixFisher, MatrixFisher
+from hkpd.distributions import BodyDistribution, KinematicMatrixFisher, MatrixFisher
 from hkpd.evaluation.occlusion_response import limb_vertex_masks
 from hkpd.kinematic_tree import BODY_PARENTS, body_joint_index
 from hkpd.prediction.upright_view import UprightView, torso_tilt
@@ -52,7 +52,7 @@ def scene(body64):
     offset = roma.rotvec_to_rotmat(0.15 * torch.randn(23, 3, generator=generator).double())
     prior_mode = true_pose @ offset
     F = 10.0 * prior_mode  # concentration 20 about every axis (std ~13°)
-    start = BodyEstimate(F[None], torch.zeros(1, 10).double(), torch.ones(1, 10).double(),
+    start = BodyDistribution(F[None], torch.zeros(1, 10).double(), torch.ones(1, 10).double(),
                          orient[None], torch.tensor([[0.9, 0.0, 0.0]]).double())  # fmt: skip
     return {"pose": true_pose, "keypoints": keypoints, "start": start, "betas": betas}
 
@@ -147,7 +147,7 @@ def test_too_little_or_non_finite_input_falls_back_with_a_reason(body64, scene) 
     few = condition_on_keypoints(body64, scene["start"], _evidence(scene, range(3, 17)))
     assert not few.succeeded and "only 3 keypoint(s)" in few.reason
     bad = scene["start"]
-    bad = BodyEstimate(bad.F.clone(), bad.shape_mean, bad.shape_std, bad.global_orient, bad.camera)
+    bad = replace(bad, F=bad.F.clone())
     bad.F[0, 4, 0, 0] = math.nan
     broken = condition_on_keypoints(body64, bad, _evidence(scene))
     assert not broken.succeeded and "not finite" in broken.reason
@@ -156,7 +156,7 @@ def test_too_little_or_non_finite_input_falls_back_with_a_reason(body64, scene) 
 def test_the_lowest_cost_start_wins(body64, scene) -> None:
     good = scene["start"]
     turned = roma.rotvec_to_rotmat(torch.tensor([0.0, 0.0, 2.5], dtype=torch.float64))
-    starts = BodyEstimate(
+    starts = BodyDistribution(
         good.F.expand(2, -1, -1, -1), good.shape_mean.expand(2, -1), good.shape_std.expand(2, -1),
         torch.stack((turned @ good.global_orient[0], good.global_orient[0])),
         good.camera.expand(2, -1),

@@ -10,7 +10,8 @@ from test_network_helpers import make_training_batch, random_rotations
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
-from hkpd.network import DistributionNetwork, NetworkConfig, NetworkOutput
+from hkpd.distributions import BodyDistribution
+from hkpd.network import DistributionNetwork, NetworkConfig
 from hkpd.training.losses import (
     compute_losses,
     global_rotation_loss,
@@ -49,8 +50,8 @@ def batch(body):
     return batch
 
 
-def ground_truth_output(batch, concentration: float = 20.0) -> NetworkOutput:
-    return NetworkOutput(
+def ground_truth_output(batch, concentration: float = 20.0) -> BodyDistribution:
+    return BodyDistribution(
         F=concentration * batch.body_pose.clone(),
         shape_mean=batch.betas.clone(),
         shape_std=torch.full_like(batch.betas, 0.3),
@@ -59,10 +60,10 @@ def ground_truth_output(batch, concentration: float = 20.0) -> NetworkOutput:
     )
 
 
-def perturbed(output: NetworkOutput, amount: float) -> NetworkOutput:
+def perturbed(output: BodyDistribution, amount: float) -> BodyDistribution:
     generator = torch.Generator().manual_seed(9)
     twist = random_rotations(output.F.shape[:2], amount, generator)
-    return NetworkOutput(
+    return BodyDistribution(
         F=output.F @ twist,
         shape_mean=output.shape_mean
         + amount * torch.randn(output.shape_mean.shape, generator=generator),
@@ -157,7 +158,7 @@ def test_sample_loss_shrinks_with_concentration(body, batch):
     values = []
     for concentration in (2.0, 50.0):
         output = ground_truth_output(batch, concentration)
-        output.shape_std = torch.full_like(output.shape_std, 0.01)
+        output = replace(output, shape_std=torch.full_like(output.shape_std, 0.01))
         generator = torch.Generator().manual_seed(1)
         terms = compute_losses(output, batch, body, weights, num_samples=8, generator=generator)
         values.append(terms["joints2d_samples"].item())
@@ -166,7 +167,7 @@ def test_sample_loss_shrinks_with_concentration(body, batch):
 
 def test_batch_size_mismatch_is_rejected(body, batch):
     truth = ground_truth_output(batch)
-    smaller = NetworkOutput(*(t[:2] for t in vars(truth).values()))
+    smaller = truth.rows(slice(0, 2))
     with pytest.raises(ValueError, match="batch size"):
         compute_losses(smaller, batch, body, LossWeights())
 
@@ -236,7 +237,7 @@ def test_losses_work_inside_autocast(body, batch):
         torch.testing.assert_close(inside[name], value)
 
 
-def _shape_gradients(output: NetworkOutput, batch, body, shape_from_nll_only: bool) -> dict:
+def _shape_gradients(output: BodyDistribution, batch, body, shape_from_nll_only: bool) -> dict:
     """Gradient norm on the shape mean and std of each term, alone."""
     norms = {}
     for term in ("shape_nll", "joints2d_mode", "joints2d_samples", "joints3d_mode"):

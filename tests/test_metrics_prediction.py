@@ -11,8 +11,8 @@ from test_network_helpers import make_training_batch
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
+from hkpd.distributions import BodyDistribution
 from hkpd.evaluation import EvaluationTargets, evaluate_prediction
-from hkpd.network import NetworkOutput
 from hkpd.training.losses import pelvis_relative_body
 
 
@@ -31,8 +31,8 @@ def case(body):
     return batch, camera, targets
 
 
-def prediction(batch, camera, concentration: float, shape_std: float) -> NetworkOutput:
-    return NetworkOutput(
+def prediction(batch, camera, concentration: float, shape_std: float) -> BodyDistribution:
+    return BodyDistribution(
         F=concentration * batch.body_pose,
         shape_mean=batch.betas,
         shape_std=torch.full_like(batch.betas, shape_std),
@@ -103,7 +103,7 @@ def test_synthetic_evaluation_reports_2d_metrics_at_a_256_crop(body, case):
     output = prediction(batch, camera, 5.0, 0.3)
 
     class FixedNetwork(torch.nn.Module):
-        def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+        def forward(self, proxy: torch.Tensor) -> BodyDistribution:
             return output
 
     reported = evaluate_batches(FixedNetwork(), [batch], body, num_samples=4, seed=3)

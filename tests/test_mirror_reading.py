@@ -9,14 +9,15 @@ from hkpd.body import BodyModel
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.coco_keypoints import COCO17_MIRROR_ORDER, COCO17_NAMES
-from hkpd.network import NetworkConfig, NetworkOutput
+from hkpd.distributions import BodyDistribution
+from hkpd.network import NetworkConfig
 from hkpd.prediction.mirror_reading import MirrorChoosingReader, mirror_proxy, unmirror_output
 from hkpd.proxy import assemble_proxy
 
 SIZE = 64
 
 
-def a_reading(count: int, seed: int) -> NetworkOutput:
+def a_reading(count: int, seed: int) -> BodyDistribution:
     """A random, confident reading: a bent body, turned and shifted in its crop."""
     generator = torch.Generator().manual_seed(seed)
     pose = roma.rotvec_to_rotmat(0.4 * torch.randn(count, 23, 3, generator=generator))
@@ -24,7 +25,7 @@ def a_reading(count: int, seed: int) -> NetworkOutput:
         count, 3, generator=generator))  # fmt: skip
     camera = torch.stack([torch.full((count,), 0.9), *(0.2 * torch.randn(2, count,
                           generator=generator))], -1)  # fmt: skip
-    return NetworkOutput(
+    return BodyDistribution(
         F=pose * 200.0,
         shape_mean=0.5 * torch.randn(count, 10, generator=generator),
         shape_std=torch.ones(count, 10),
@@ -33,7 +34,7 @@ def a_reading(count: int, seed: int) -> NetworkOutput:
     )
 
 
-def mode_keypoints(output: NetworkOutput, body: BodyModel) -> torch.Tensor:
+def mode_keypoints(output: BodyDistribution, body: BodyModel) -> torch.Tensor:
     """``(B, 17, 2)`` crop pixels of the reading's most likely body."""
     joints, _ = pelvis_relative_body(
         body, output.shape_mean, output.pose_distribution().mode, output.global_orient
@@ -76,15 +77,15 @@ def test_a_mirrored_reading_maps_back_to_the_mirror_image_of_its_keypoints() -> 
 class FixedReading(torch.nn.Module):
     """Answers the same reading for every proxy it is shown; records the batch sizes."""
 
-    def __init__(self, reading: NetworkOutput) -> None:
+    def __init__(self, reading: BodyDistribution) -> None:
         super().__init__()
         self.config = NetworkConfig(backbone_base_width=8, image_size=SIZE)
         self.reading = reading
         self.batch_sizes: list[int] = []
 
-    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+    def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         self.batch_sizes.append(int(proxy.shape[0]))
-        return NetworkOutput(
+        return BodyDistribution(
             **{name: getattr(self.reading, name).expand(proxy.shape[0], *getattr(
                 self.reading, name).shape[1:]).clone()
                for name in ("F", "shape_mean", "shape_std", "global_orient", "camera")}

@@ -7,14 +7,13 @@ import pytest
 import torch
 
 from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT
-from hkpd.distributions import KinematicMatrixFisher
+from hkpd.distributions import BodyDistribution, KinematicMatrixFisher
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS, ancestors
 from hkpd.network import (
     DistributionNetwork,
     GroupedLinear,
     HierarchicalHead,
     NetworkConfig,
-    NetworkOutput,
 )
 
 TINY = {"backbone_base_width": 8, "head_hidden": 32, "joint_hidden": (16,), "image_size": 64}
@@ -28,7 +27,7 @@ def network(request) -> DistributionNetwork:
 
 def test_output_shapes_and_constraints(network):
     output = network(torch.rand(3, 18, 64, 64))
-    assert isinstance(output, NetworkOutput)
+    assert isinstance(output, BodyDistribution)
     assert output.F.shape == (3, 23, 3, 3)
     assert output.shape_mean.shape == output.shape_std.shape == (3, 10)
     assert output.global_orient.shape == (3, 3, 3)

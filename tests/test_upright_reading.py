@@ -10,7 +10,8 @@ import torch
 from limb_lean_network import LimbLeanNetwork, rolled_frontal
 
 from hkpd.body import BodyModel
-from hkpd.network import DistributionNetwork, NetworkConfig, NetworkOutput
+from hkpd.distributions import BodyDistribution
+from hkpd.network import DistributionNetwork, NetworkConfig
 from hkpd.prediction.network_lean import mode_torso_tilts
 from hkpd.prediction.upright_reading import UprightReader
 from hkpd.prediction.upright_view import UprightView, torso_tilt
@@ -70,10 +71,10 @@ class RecordingNetwork(torch.nn.Module):
         self.config = NetworkConfig(backbone_base_width=8, image_size=SIZE)
         self.seen: list[torch.Tensor] = []
 
-    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+    def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         self.seen.append(proxy.clone())
         count = proxy.shape[0]
-        return NetworkOutput(
+        return BodyDistribution(
             F=torch.eye(3).expand(count, 23, 3, 3) * 10.0,
             shape_mean=torch.zeros(count, 10),
             shape_std=torch.ones(count, 10),
@@ -174,7 +175,7 @@ LIMBS_ONLY[0, [7, 8, 9, 10, 15, 16]] = True  # elbows, wrists, ankles: no torso,
 
 def test_the_lean_of_the_body_a_network_reads_is_its_torsos_on_screen() -> None:
     leans = [0.0, 70.0, -135.0, 180.0]
-    output = NetworkOutput(
+    output = BodyDistribution(
         F=torch.eye(3).expand(4, 23, 3, 3) * 1000.0,
         shape_mean=torch.zeros(4, 10),
         shape_std=torch.ones(4, 10),

@@ -13,8 +13,6 @@ It sits between the body model and prediction: it takes plain tensors (no networ
 from hkpd.conditioning.config import EvidenceConfig
 from hkpd.conditioning.keypoint_evidence import KeypointEvidence
 from hkpd.conditioning.keypoint_fit import (
-    BodyEstimate,
-    ConditionedBody,
     KeypointFit,
     condition_on_keypoints,
     fit_keypoints,
@@ -22,8 +20,6 @@ from hkpd.conditioning.keypoint_fit import (
 from hkpd.conditioning.laplace import marginal_precisions, matrix_fisher_from_precision
 
 __all__ = [
-    "BodyEstimate",
-    "ConditionedBody",
     "EvidenceConfig",
     "KeypointEvidence",
     "KeypointFit",

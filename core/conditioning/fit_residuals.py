@@ -29,7 +29,7 @@ from hkpd.body import BodyModel
 from hkpd.camera_conventions import pixels_to_ndc
 from hkpd.conditioning.config import EvidenceConfig
 from hkpd.conditioning.keypoint_evidence import KeypointEvidence
-from hkpd.distributions import proper_svd
+from hkpd.distributions import BodyDistribution, proper_svd
 
 NUM_BODY_JOINTS = 23
 POSE = slice(0, 69)
@@ -38,37 +38,6 @@ CAMERA = slice(72, 75)
 SHAPE = slice(75, 85)
 NUM_PARAMETERS = 85
 NUM_KEYPOINTS = 17
-
-
-@dataclass(frozen=True)
-class BodyEstimate:
-    """B network predictions (starts of the fit, and their priors), float64 or float32.
-
-    Attributes:
-        F: ``(B, 23, 3, 3)`` matrix-Fisher parameters of the relative joint rotations.
-        shape_mean, shape_std: ``(B, K)`` the shape Gaussian.
-        global_orient: ``(B, 3, 3)`` body-to-camera rotation.
-        camera: ``(B, 3)`` weak-perspective ``[s, tx, ty]`` of the crop (s in NDC per metre).
-    """
-
-    F: torch.Tensor
-    shape_mean: torch.Tensor
-    shape_std: torch.Tensor
-    global_orient: torch.Tensor
-    camera: torch.Tensor
-
-    @property
-    def batch_size(self) -> int:
-        return int(self.F.shape[0])
-
-    def to(self, dtype: torch.dtype) -> BodyEstimate:
-        """A copy in ``dtype``."""
-        return BodyEstimate(
-            *(
-                t.to(dtype)
-                for t in (self.F, self.shape_mean, self.shape_std, self.global_orient, self.camera)
-            )
-        )
 
 
 @dataclass(frozen=True)
@@ -90,7 +59,7 @@ class FitState:
     betas: torch.Tensor
 
     @classmethod
-    def from_estimate(cls, estimate: BodyEstimate, body_pose: torch.Tensor) -> FitState:
+    def from_estimate(cls, estimate: BodyDistribution, body_pose: torch.Tensor) -> FitState:
         """The start: ``body_pose (B, 23, 3, 3)`` and the estimate's global rotation, camera and
         mean shape."""
         return cls(
@@ -179,7 +148,7 @@ class FitResiduals:
     def __init__(
         self,
         body: BodyModel,
-        priors: BodyEstimate,
+        priors: BodyDistribution,
         evidence: KeypointEvidence,
         config: EvidenceConfig,
     ) -> None:

@@ -31,30 +31,12 @@ from hkpd.conditioning.fit_residuals import (
     NUM_BODY_JOINTS,
     POSE,
     SHAPE,
-    BodyEstimate,
     FitResiduals,
 )
 from hkpd.conditioning.keypoint_evidence import KeypointEvidence
 from hkpd.conditioning.laplace import marginal_precisions, matrix_fisher_from_precision
 from hkpd.conditioning.levenberg_marquardt import SolverResult, levenberg_marquardt
-
-
-@dataclass(frozen=True)
-class ConditionedBody:
-    """The evidence posterior's parameters, float64, in the network's families and frames.
-
-    Attributes:
-        F: ``(23, 3, 3)`` per-joint matrix-Fisher parameters (mode = fitted rotation).
-        shape_mean, shape_std: ``(K,)`` the shape Gaussian.
-        global_orient: ``(3, 3)`` fitted body-to-camera rotation.
-        camera: ``(3,)`` fitted weak-perspective ``[s, tx, ty]`` of the crop.
-    """
-
-    F: torch.Tensor
-    shape_mean: torch.Tensor
-    shape_std: torch.Tensor
-    global_orient: torch.Tensor
-    camera: torch.Tensor
+from hkpd.distributions import BodyDistribution
 
 
 @dataclass(frozen=True)
@@ -75,7 +57,7 @@ class KeypointFit:
         seconds: wall time of the fit.
     """
 
-    conditioned: ConditionedBody | None
+    conditioned: BodyDistribution | None
     reason: str
     evidence_count: int
     start: int = -1
@@ -92,7 +74,7 @@ class KeypointFit:
 
 
 def fit_keypoints(
-    body: BodyModel, starts: BodyEstimate, evidence: KeypointEvidence, config: EvidenceConfig
+    body: BodyModel, starts: BodyDistribution, evidence: KeypointEvidence, config: EvidenceConfig
 ) -> SolverResult:
     """Run the fit from every start (see :func:`condition_on_keypoints`).
 
@@ -114,7 +96,7 @@ def fit_keypoints(
 
 def laplace_posterior(
     result: SolverResult, start: int, spread: str = "conditional"
-) -> ConditionedBody:
+) -> BodyDistribution:
     """The family posterior of one start from the fit's Hessian (see the module docstring)."""
     hessian = result.hessian[start]
     kept = torch.cat((torch.arange(POSE.start, POSE.stop), torch.arange(SHAPE.start, SHAPE.stop)))
@@ -128,7 +110,7 @@ def laplace_posterior(
     body_pose = state.body_pose()[start]
     F = matrix_fisher_from_precision(body_pose, joint_precision)
     shape_covariance = torch.linalg.inv(conditional)[POSE.stop :, POSE.stop :]
-    return ConditionedBody(
+    return BodyDistribution(
         F=F,
         shape_mean=state.betas[start],
         shape_std=shape_covariance.diagonal().clamp_min(0.0).sqrt(),
@@ -139,7 +121,7 @@ def laplace_posterior(
 
 def condition_on_keypoints(
     body: BodyModel,
-    starts: BodyEstimate,
+    starts: BodyDistribution,
     evidence: KeypointEvidence,
     config: EvidenceConfig | None = None,
 ) -> KeypointFit:
@@ -190,19 +172,6 @@ def condition_on_keypoints(
         "keypoint_weights": result.keypoint_weights[best] * evidence.observed.to(torch.float64),
         "seconds": time.perf_counter() - began,
     }
-    if conditioned is None or not _finite(conditioned):
+    if conditioned is None or not conditioned.is_finite():
         return KeypointFit(None, "the fit produced non-finite numbers", **common)
     return KeypointFit(conditioned, "", **common)
-
-
-def _finite(conditioned: ConditionedBody) -> bool:
-    return all(
-        bool(torch.isfinite(t).all())
-        for t in (
-            conditioned.F,
-            conditioned.shape_mean,
-            conditioned.shape_std,
-            conditioned.global_orient,
-            conditioned.camera,
-        )
-    ) and bool((conditioned.shape_std > 0).all())

@@ -4,9 +4,12 @@
   paper's differentiable rejection sampler (Algorithm 1).
 - :class:`KinematicMatrixFisher`: per-joint matrix-Fisher distributions over a kinematic tree.
 - :func:`body_shape_distribution`: diagonal Gaussian over shape coefficients.
+- :class:`BodyDistribution`: the record of a whole body distribution (pose F, shape Gaussian,
+  global rotation, camera) that the network predicts, the fit refines and a posterior wraps.
 """
 
 from hkpd.distributions.bingham_sampler import kent_optimal_b, sample_bingham
+from hkpd.distributions.body_distribution import BodyDistribution
 from hkpd.distributions.body_shape import body_shape_distribution
 from hkpd.distributions.kinematic_matrix_fisher import KinematicMatrixFisher
 from hkpd.distributions.matrix_fisher import MatrixFisher
@@ -18,6 +21,7 @@ from hkpd.distributions.proper_svd import proper_svd
 from hkpd.kinematic_tree import compose_global_rotations  # re-exported: it used to live here
 
 __all__ = [
+    "BodyDistribution",
     "KinematicMatrixFisher",
     "MatrixFisher",
     "body_shape_distribution",

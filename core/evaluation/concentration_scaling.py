@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import torch
 
-from hkpd.network.output import NetworkOutput
+from hkpd.distributions import BodyDistribution
 
 
 class ConcentrationScaled(torch.nn.Module):
@@ -26,7 +26,7 @@ class ConcentrationScaled(torch.nn.Module):
 
     Args:
         network: a :class:`hkpd.network.DistributionNetwork` (or anything returning a
-            :class:`NetworkOutput` for a ``(B, C, S, S)`` proxy).
+            :class:`BodyDistribution` for a ``(B, C, S, S)`` proxy).
         factor: the positive, finite scale applied to every ``(B, 23, 3, 3)`` F.
 
     Attributes:
@@ -41,6 +41,6 @@ class ConcentrationScaled(torch.nn.Module):
         self.config = network.config
         self.factor = float(factor)
 
-    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+    def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         output = self.network(proxy)
         return replace(output, F=output.F * self.factor)

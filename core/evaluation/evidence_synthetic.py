@@ -2,7 +2,7 @@
 
 Each test example's exact keypoints get detector-like noise
 (:func:`hkpd.synthesis.detector_noise.detector_like_keypoints`); the visible, reported ones are
-the evidence. The conditioned posterior is packed into a :class:`NetworkOutput`, so every metric
+the evidence. The conditioned posterior is packed into a :class:`BodyDistribution`, so every metric
 of :func:`evaluate_prediction` (2D mode and samples errors, coverage, 3D errors) scores both
 posteriors identically. Examples whose fit falls back score the network's posterior.
 """
@@ -15,23 +15,23 @@ from collections.abc import Iterable
 import torch
 
 from hkpd.body import BodyModel
-from hkpd.conditioning import BodyEstimate, EvidenceConfig, KeypointEvidence, condition_on_keypoints
+from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
+from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.metrics import MILLIMETRES_PER_METRE
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
-from hkpd.network.output import NetworkOutput
 from hkpd.synthesis.batch import TrainingBatch
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
 
 
 def condition_batch(
-    output: NetworkOutput,
+    output: BodyDistribution,
     detected: torch.Tensor,
     reported: torch.Tensor,
     crop_size: int,
     body64: BodyModel,
     config: EvidenceConfig,
-) -> tuple[NetworkOutput, torch.Tensor]:
+) -> tuple[BodyDistribution, torch.Tensor]:
     """The evidence posterior of every example of a batch (network's where the fit fails).
 
     Returns:
@@ -44,7 +44,7 @@ def condition_batch(
     }
     succeeded = torch.zeros(output.batch_size, dtype=torch.bool)
     for item in range(output.batch_size):
-        start = BodyEstimate(
+        start = BodyDistribution(
             *(
                 fields[name][item : item + 1].detach().cpu()
                 for name in ("F", "shape_mean", "shape_std", "global_orient", "camera")
@@ -58,7 +58,7 @@ def condition_batch(
         for name in fields:
             value = getattr(fit.conditioned, name)
             fields[name][item] = value.to(fields[name].dtype)
-    return NetworkOutput(**fields), succeeded
+    return BodyDistribution(**fields), succeeded
 
 
 @torch.no_grad()

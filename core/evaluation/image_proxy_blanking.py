@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import torch
 
-from hkpd.network.output import NetworkOutput
+from hkpd.distributions import BodyDistribution
 from hkpd.proxy import NUM_KEYPOINTS
 
 
@@ -28,7 +28,7 @@ class WithoutImageProxy(torch.nn.Module):
         self.network = network
         self.config = network.config
 
-    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+    def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         """The network's output for ``(B, C + 17, S, S)`` proxies whose first ``C`` channels
         are set to zero (the caller's tensor is left as it is)."""
         blanked = proxy.clone()

@@ -20,8 +20,8 @@ import numpy as np
 import torch
 
 from hkpd.body import BodyModel
+from hkpd.distributions import BodyDistribution
 from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS, SMPL_JOINT_NAMES
-from hkpd.network.output import NetworkOutput
 from hkpd.prediction.occluders import apply_occluders, points_under_boxes
 from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.generator import RenderedBatch, SyntheticDataGenerator, batch_seed
@@ -91,7 +91,7 @@ def cover_limb(
 
 
 def sampled_vertex_uncertainty(
-    output: NetworkOutput, poses: torch.Tensor, betas: torch.Tensor, body: BodyModel
+    output: BodyDistribution, poses: torch.Tensor, betas: torch.Tensor, body: BodyModel
 ) -> torch.Tensor:
     """``(B, V)`` per-vertex uncertainty (metres) of S bodies per image, each posed with the
     image's predicted global rotation.
@@ -110,7 +110,7 @@ def sampled_vertex_uncertainty(
     return torch.stack(result)
 
 
-Conditioner = Callable[[NetworkOutput, torch.Tensor, torch.Tensor], NetworkOutput]
+Conditioner = Callable[[BodyDistribution, torch.Tensor, torch.Tensor], BodyDistribution]
 """Maps the network's output, the ``(B, 17, 2)`` input keypoints and their ``(B, 17)`` presence
 to another posterior (e.g. the keypoint-evidence one)."""
 

@@ -15,6 +15,7 @@ import torch
 from hkpd.body.body_model import BodyModel
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
+from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.calibration import rotation_coverage
 from hkpd.evaluation.metrics import (
     MIN_OF_N_COUNTS,
@@ -26,7 +27,6 @@ from hkpd.evaluation.metrics import (
     pve_t_sc,
     sample_diversity,
 )
-from hkpd.network.output import NetworkOutput
 
 SAMPLES_FOR_2D_ERROR = 10
 """The paper's "2D Joint Err. Samples" uses 10 sampled bodies per image."""
@@ -56,7 +56,7 @@ class EvaluationTargets:
 
 @torch.no_grad()
 def evaluate_prediction(
-    output: NetworkOutput,
+    output: BodyDistribution,
     body: BodyModel,
     targets: EvaluationTargets,
     num_samples: int = 25,

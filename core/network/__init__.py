@@ -2,8 +2,8 @@
 hierarchical matrix-Fisher pose heads, plus shape, global-rotation and camera heads.
 
 - :class:`DistributionNetwork` (built from a :class:`NetworkConfig`) maps ``(B, 18, H, W)`` proxies
-  to a :class:`NetworkOutput`, whose ``pose_distribution()`` and ``shape_distribution()`` give the
-  predicted distributions.
+  to a :class:`hkpd.distributions.BodyDistribution`, whose ``pose_distribution()`` and
+  ``shape_distribution()`` give the predicted distributions.
 """
 
 from hkpd.network.backbone import BasicBlock, ResNetBackbone
@@ -12,7 +12,6 @@ from hkpd.network.grouped_linear import GroupedLinear
 from hkpd.network.hierarchical_head import HierarchicalHead
 from hkpd.network.independent_head import IndependentHead
 from hkpd.network.model import DistributionNetwork
-from hkpd.network.output import NetworkOutput
 
 __all__ = [
     "POSE_HEADS",
@@ -22,6 +21,5 @@ __all__ = [
     "HierarchicalHead",
     "IndependentHead",
     "NetworkConfig",
-    "NetworkOutput",
     "ResNetBackbone",
 ]

@@ -26,11 +26,10 @@ from itertools import pairwise
 import torch
 from torch import nn
 
-from hkpd.distributions import proper_svd
+from hkpd.distributions import BodyDistribution, proper_svd
 from hkpd.kinematic_tree import ancestors, depth_levels, validate_parents
 from hkpd.network.grouped_linear import GroupedLinear
 from hkpd.network.independent_head import init_output_layer, zero_layer
-from hkpd.network.output import NetworkOutput
 from hkpd.network.output_decoding import (
     decode_globals,
     decode_pose,
@@ -156,17 +155,17 @@ class HierarchicalHead(nn.Module):
         self.register_buffer("_joint_order", inverse, persistent=False)
         self._first_hidden = joint_hidden[0]
 
-    def forward(self, features: torch.Tensor) -> NetworkOutput:
-        """``(B, feature_dim)`` image features to a :class:`NetworkOutput`."""
+    def forward(self, features: torch.Tensor) -> BodyDistribution:
+        """``(B, feature_dim)`` image features to a :class:`BodyDistribution`."""
         return self.predict(features)
 
-    def predict(self, features: torch.Tensor, edit: LevelEdit | None = None) -> NetworkOutput:
+    def predict(self, features: torch.Tensor, edit: LevelEdit | None = None) -> BodyDistribution:
         """Like :meth:`forward`; ``edit`` (tests only) may replace each level's ``F``."""
         embedding = self.trunk(features)
         mean, std, orient, camera = decode_globals(self.globals_out(embedding), self.num_betas)
         mean_in, std_in = (mean.detach(), std.detach()) if self.detach_shape_input else (mean, std)
         shared = torch.cat((embedding, mean_in, std_in, orient.flatten(-2), camera), dim=-1)
-        return NetworkOutput(self.pose_parameters(shared, edit), mean, std, orient, camera)
+        return BodyDistribution(self.pose_parameters(shared, edit), mean, std, orient, camera)
 
     def pose_parameters(self, shared: torch.Tensor, edit: LevelEdit | None = None) -> torch.Tensor:
         """All joints' ``F`` from the shared inputs, level by level down the tree.

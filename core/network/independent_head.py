@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from hkpd.network.output import NetworkOutput
+from hkpd.distributions import BodyDistribution
 from hkpd.network.output_decoding import decode_globals, decode_pose, global_bias, global_size
 
 OUTPUT_WEIGHT_SCALE = 0.1
@@ -75,11 +75,11 @@ class IndependentHead(nn.Module):
         if self.log_gain_out is not None:
             zero_layer(self.log_gain_out)
 
-    def forward(self, features: torch.Tensor) -> NetworkOutput:
-        """``(B, feature_dim)`` image features to a :class:`NetworkOutput`."""
+    def forward(self, features: torch.Tensor) -> BodyDistribution:
+        """``(B, feature_dim)`` image features to a :class:`BodyDistribution`."""
         embedding = self.trunk(features)
         mean, std, orient, camera = decode_globals(self.globals_out(embedding), self.num_betas)
         raw_pose = self.pose_out(embedding).unflatten(-1, (self.num_joints, 9))
         log_gain = None if self.log_gain_out is None else self.log_gain_out(embedding)
         F = decode_pose(raw_pose, self.concentration, log_gain)
-        return NetworkOutput(F, mean, std, orient, camera)
+        return BodyDistribution(F, mean, std, orient, camera)

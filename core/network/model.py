@@ -8,12 +8,12 @@ from typing import Any
 import torch
 from torch import nn
 
+from hkpd.distributions import BodyDistribution
 from hkpd.kinematic_tree import BODY_PARENTS
 from hkpd.network.backbone import ResNetBackbone
 from hkpd.network.config import NetworkConfig
 from hkpd.network.hierarchical_head import HierarchicalHead
 from hkpd.network.independent_head import IndependentHead
-from hkpd.network.output import NetworkOutput
 
 
 class DistributionNetwork(nn.Module):
@@ -68,7 +68,7 @@ class DistributionNetwork(nn.Module):
             config = NetworkConfig.from_dict(config)
         return cls(config)
 
-    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+    def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         """Predict distributions for a batch of proxy representations.
 
         Args:
@@ -76,7 +76,7 @@ class DistributionNetwork(nn.Module):
                 :mod:`hkpd.proxy.representation`).
 
         Returns:
-            :class:`NetworkOutput` with batch size B.
+            :class:`BodyDistribution` with batch size B.
 
         Raises:
             ValueError: if the input's shape does not match the config.

@@ -21,15 +21,15 @@ camera's x shift changes sign. Shape does not change.
 
 from __future__ import annotations
 
-from dataclasses import fields, replace
+from dataclasses import replace
 
 import numpy as np
 import torch
 
 from hkpd.body import BodyModel
 from hkpd.coco_keypoints import COCO17_MIRROR_ORDER
+from hkpd.distributions import BodyDistribution
 from hkpd.mirror_symmetry import BODY_MIRROR_PERMUTATION, reflect_rotations
-from hkpd.network.output import NetworkOutput
 from hkpd.prediction.network_lean import mode_keypoint_misfits
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
@@ -46,7 +46,7 @@ def mirror_proxy(proxy: torch.Tensor) -> torch.Tensor:
     return torch.cat([proxy[:, :planes], heatmaps], 1).flip(-1)
 
 
-def unmirror_output(output: NetworkOutput) -> NetworkOutput:
+def unmirror_output(output: BodyDistribution) -> BodyDistribution:
     """A reading of mirrored proxies mapped back to the proxies' own frame (its own inverse)."""
     permutation = torch.tensor(BODY_MIRROR_PERMUTATION, device=output.F.device)
     sign = torch.tensor([1.0, -1.0, 1.0], dtype=output.camera.dtype, device=output.camera.device)
@@ -84,14 +84,14 @@ class MirrorChoosingReader(torch.nn.Module):
         self.config = network.config
         self.body = body
         self.last_mirrored = np.zeros(0, dtype=bool)
-        self.last_other: NetworkOutput | None = None
+        self.last_other: BodyDistribution | None = None
 
-    def forward(self, proxy: torch.Tensor) -> NetworkOutput:
+    def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         """The chosen readings of ``(B, C + 17, S, S)`` proxies, each in its proxy's frame."""
         count, size = int(proxy.shape[0]), int(proxy.shape[-1])
         both = self.network(torch.cat([proxy, mirror_proxy(proxy)]))
-        as_it_is = _rows(both, slice(0, count))
-        mirrored = unmirror_output(_rows(both, slice(count, 2 * count)))
+        as_it_is = both.rows(slice(0, count))
+        mirrored = unmirror_output(both.rows(slice(count, 2 * count)))
         if self.body is None:
             self.body = BodyModel().to(proxy.device)
         peaks, present = heatmap_peaks(proxy[:, -NUM_KEYPOINTS:])
@@ -102,24 +102,5 @@ class MirrorChoosingReader(torch.nn.Module):
         ]
         self.last_mirrored = misfits[1] < misfits[0]
         take = torch.as_tensor(self.last_mirrored, device=proxy.device)
-        self.last_other = _select(~take, mirrored, as_it_is)
-        return _select(take, mirrored, as_it_is)
-
-
-def _select(take: torch.Tensor, chosen: NetworkOutput, other: NetworkOutput) -> NetworkOutput:
-    """Per example, ``chosen``'s reading where ``take`` (``(B,)`` bool), else ``other``'s."""
-    return NetworkOutput(
-        **{
-            field.name: torch.where(
-                take.view(-1, *[1] * (getattr(chosen, field.name).ndim - 1)),
-                getattr(chosen, field.name),
-                getattr(other, field.name),
-            )
-            for field in fields(NetworkOutput)
-        }
-    )
-
-
-def _rows(output: NetworkOutput, rows: slice) -> NetworkOutput:
-    """The examples ``rows`` of a batched reading."""
-    return NetworkOutput(**{f.name: getattr(output, f.name)[rows] for f in fields(NetworkOutput)})
+        self.last_other = mirrored.where(~take, as_it_is)
+        return mirrored.where(take, as_it_is)

@@ -22,7 +22,7 @@ import torch
 from hkpd.body import BodyModel
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
-from hkpd.network.output import NetworkOutput
+from hkpd.distributions import BodyDistribution
 from hkpd.prediction.upright_view import torso_tilt
 
 LEAN_CANDIDATES_DEGREES = tuple(range(30, 360, 30))
@@ -36,7 +36,9 @@ _ALL_KEYPOINTS = np.ones(17, dtype=bool)
 
 
 @torch.no_grad()
-def mode_torso_tilts(output: NetworkOutput, body: BodyModel, crop_size: int) -> list[float | None]:
+def mode_torso_tilts(
+    output: BodyDistribution, body: BodyModel, crop_size: int
+) -> list[float | None]:
     """The lean of each example's most likely body, as the keypoints would show it.
 
     Args:
@@ -59,7 +61,7 @@ def mode_torso_tilts(output: NetworkOutput, body: BodyModel, crop_size: int) -> 
 
 @torch.no_grad()
 def mode_keypoint_misfits(
-    output: NetworkOutput,
+    output: BodyDistribution,
     body: BodyModel,
     crop_size: int,
     keypoints: np.ndarray,

@@ -30,10 +30,10 @@ import torch
 from PIL import Image
 
 from hkpd.body import BodyModel
-from hkpd.conditioning import BodyEstimate, EvidenceConfig, KeypointEvidence, condition_on_keypoints
+from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
 from hkpd.devices import resolve_device
+from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network
-from hkpd.network.output import NetworkOutput
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
 from hkpd.prediction.mirror_reading import MirrorChoosingReader
@@ -269,7 +269,7 @@ class Predictor:
 
     def _posterior(
         self,
-        starts: BodyEstimate,
+        starts: BodyDistribution,
         index: int,
         prepared: NetworkInput,
         observed: np.ndarray,
@@ -332,7 +332,7 @@ def _upright_proxy(view: UprightView, prepared: NetworkInput, image_proxy: str) 
     )
 
 
-def _starts(output: NetworkOutput, view: UprightView | None) -> BodyEstimate:
+def _starts(output: BodyDistribution, view: UprightView | None) -> BodyDistribution:
     """The network's answers as fit starts on the CPU, the upright copy's mapped back to the
     crop's frame."""
     F, shape_mean, shape_std, orient, camera = (
@@ -342,4 +342,4 @@ def _starts(output: NetworkOutput, view: UprightView | None) -> BodyEstimate:
     if view is not None:
         orient, camera = orient.clone(), camera.clone()
         orient[1], camera[1] = view.to_crop_frame(orient[1], camera[1])
-    return BodyEstimate(F, shape_mean, shape_std, orient, camera)
+    return BodyDistribution(F, shape_mean, shape_std, orient, camera)

@@ -32,7 +32,7 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.conditioning import EvidenceConfig
-from hkpd.network.output import NetworkOutput
+from hkpd.distributions import BodyDistribution
 from hkpd.prediction.network_lean import (
     LEAN_CANDIDATES_DEGREES,
     TURNED_FIT_MARGIN,
@@ -83,7 +83,7 @@ class UprightReader(torch.nn.Module):
 
     def forward(
         self, proxy: torch.Tensor, crop_keypoints: torch.Tensor | None = None
-    ) -> NetworkOutput:
+    ) -> BodyDistribution:
         """The network's output for ``(B, C + 17, S, S)`` proxies, each in its own frame.
 
         Args:
@@ -169,7 +169,7 @@ class UprightReader(torch.nn.Module):
         points: np.ndarray,
         present: torch.Tensor,
         views: dict[int, UprightView],
-    ) -> NetworkOutput:
+    ) -> BodyDistribution:
         """The network's output for ``proxy``, the examples in ``views`` read from their upright
         copies and mapped back to their crops' frames."""
         if not views:

@@ -25,9 +25,8 @@ from hkpd.alignment import root_align
 from hkpd.body.body_model import BodyModel
 from hkpd.body.root_relative import PELVIS, pelvis_relative_body
 from hkpd.camera_conventions import pixels_to_ndc, weak_perspective_project
-from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
+from hkpd.distributions import BodyDistribution, KinematicMatrixFisher, body_shape_distribution
 from hkpd.kinematic_tree import BODY_PARENTS
-from hkpd.network.output import NetworkOutput
 from hkpd.network.output_decoding import full_precision
 from hkpd.synthesis.batch import TrainingBatch
 from hkpd.training.schedule import LossWeights
@@ -114,7 +113,7 @@ def joints3d_loss(predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor
 
 
 def compute_losses(
-    output: NetworkOutput,
+    output: BodyDistribution,
     batch: TrainingBatch,
     body: BodyModel,
     weights: LossWeights,
@@ -157,7 +156,7 @@ def compute_losses(
 
 
 def _compute_losses(
-    output: NetworkOutput,
+    output: BodyDistribution,
     batch: TrainingBatch,
     body: BodyModel,
     weights: LossWeights,
@@ -172,7 +171,7 @@ def _compute_losses(
         raise ValueError(
             f"prediction has batch size {output.batch_size}, targets {batch.batch_size}"
         )
-    output = NetworkOutput(**{name: full_precision(value) for name, value in vars(output).items()})
+    output = output.map(full_precision)
     terms: dict[str, torch.Tensor] = {}
     pose = output.pose_distribution()
     if weights.shape_nll > 0:
@@ -208,7 +207,7 @@ def _compute_losses(
 
 
 def _samples_reprojection_loss(
-    output: NetworkOutput,
+    output: BodyDistribution,
     pose: KinematicMatrixFisher,
     body: BodyModel,
     target_ndc: torch.Tensor,
