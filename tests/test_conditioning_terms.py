@@ -12,7 +12,14 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT, ndc_to_pixels
-from hkpd.conditioning import EvidenceConfig, KeypointEvidence, KeypointFit, condition_on_keypoints
+from hkpd.conditioning import (
+    EvidenceConfig,
+    KeypointEvidence,
+    KeypointFit,
+    KeypointTerm,
+    condition_on_keypoints,
+    fit_evidence,
+)
 from hkpd.distributions import BodyDistribution
 
 SIZE = 160
@@ -83,3 +90,90 @@ def test_keypoint_only_fit_matches_the_reference(body64) -> None:
         np.testing.assert_allclose(value, reference[name], rtol=1e-9, atol=1e-12, err_msg=name)
     weights = record["keypoint_weights"]
     assert weights[7] < 0.5 < weights[:7].min() and weights[16] == 0.0  # outlier, hidden
+
+
+class ShapePull:
+    """A toy evidence term: "shape coefficient ``index`` is ``target`` ± ``sigma``"."""
+
+    residual_shape = (1, 1)
+    needs_vertices = False
+
+    def __init__(self, index: int, target: float, sigma: float, robust_scale=None) -> None:
+        self.name = "shape_pull"
+        self.index, self.target, self.sigma = index, target, sigma
+        self.robust_scale = robust_scale
+
+    def residuals(self, posed):
+        return ((posed.betas[..., self.index] - self.target) / self.sigma)[..., None, None]
+
+
+class VertexProbe:
+    """A toy term that asks for the vertices, checks what it gets, and adds no evidence."""
+
+    name = "vertex_probe"
+    residual_shape = (1, 1)
+    robust_scale = None
+    needs_vertices = True
+
+    def __init__(self) -> None:
+        self.shapes: list[tuple[int, ...]] = []
+
+    def residuals(self, posed):
+        self.shapes.append(tuple(posed.vertices.shape))
+        return 0.0 * posed.vertices[..., :1, :1]
+
+
+def test_a_new_term_plugs_in_and_moves_the_fit(body64) -> None:
+    starts, evidence = reference_problem(body64)
+    config = EvidenceConfig()
+    plain = condition_on_keypoints(body64, starts, evidence, config)
+    pull = ShapePull(index=3, target=2.0, sigma=0.05)
+    pulled = condition_on_keypoints(body64, starts, evidence, config, extra_terms=[pull])
+    assert plain.terms == ("keypoints",) and pulled.terms == ("keypoints", "shape_pull")
+    before, after = plain.conditioned.shape_mean[3], pulled.conditioned.shape_mean[3]
+    assert abs(before - 2.0) > 1.0 and abs(after - 2.0) < 0.05  # the term moved the fit
+    # ... and the Laplace step counted its evidence: that coefficient is now about sigma sure
+    assert pulled.conditioned.shape_std[3] < 0.06 < 0.5 < plain.conditioned.shape_std[3]
+    others = [i for i in range(10) if i != 3]
+    assert (pulled.conditioned.shape_std[others] > 0.3).all()
+    assert pulled.keypoint_weights.shape == (17,)
+
+
+def test_a_robust_term_reports_its_weights(body64) -> None:
+    starts, evidence = reference_problem(body64)
+    config = EvidenceConfig(max_iterations=10)
+    far = ShapePull(index=0, target=40.0, sigma=0.05, robust_scale=1.0)
+    result = fit_evidence(body64, starts, [KeypointTerm(evidence, config), far], config)
+    assert set(result.robust_weights) == {"keypoints", "shape_pull"}
+    assert result.robust_weights["shape_pull"].shape == (2, 1)
+    # 800 sigmas off at the start, the Cauchy loss leaves the pull weak: no jump to 40
+    assert (result.robust_weights["shape_pull"] < 0.01).all()
+    assert (result.state.betas[:, 0] < 5.0).all()
+
+
+def test_a_term_reading_vertices_sees_them_and_leaves_the_keypoints_as_they_were(body64):
+    starts, evidence = reference_problem(body64)
+    config = EvidenceConfig(max_iterations=2)
+    probe = VertexProbe()
+    plain = condition_on_keypoints(body64, starts.rows(slice(0, 1)), evidence, config)
+    probed = condition_on_keypoints(
+        body64, starts.rows(slice(0, 1)), evidence, config, extra_terms=[probe]
+    )
+    assert probe.shapes[0] == (86, 1, body64.num_vertices, 3)  # 85 perturbations + the state
+    # Posed with its vertices, the body has the same keypoints; the probe's zero residual
+    # changes only the summation order of the Hessian's products (float noise, through the
+    # finite differences' 1e-6 step).
+    pairs = zip(probed.conditioned.tensors(), plain.conditioned.tensors(), strict=True)
+    for mine, theirs in pairs:
+        torch.testing.assert_close(mine, theirs, rtol=1e-6, atol=1e-9)
+
+
+def test_malformed_terms_are_refused_with_their_name(body64) -> None:
+    starts, evidence = reference_problem(body64)
+    config = EvidenceConfig()
+    with pytest.raises(ValueError, match="unique names"):
+        fit_evidence(body64, starts, [KeypointTerm(evidence, config)] * 2, config)
+    wrong = ShapePull(index=0, target=0.0, sigma=1.0)
+    wrong.residual_shape = (2, 1)
+    with pytest.raises(ValueError, match="'shape_pull' returned residuals of shape"):
+        fit_evidence(body64, starts, [KeypointTerm(evidence, config), wrong], config)

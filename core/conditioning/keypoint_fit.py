@@ -2,9 +2,12 @@
 
 :func:`condition_on_keypoints` runs the batched Levenberg-Marquardt fit
 (:mod:`hkpd.conditioning.levenberg_marquardt`) of pose, global rotation, camera and shape to
-the evidence keypoints, from every start (e.g. the network run on the crop and on the crop
-rotated upright), keeps the start with the lowest negative log posterior, and builds the
-posterior in the network's families from the fit's Gauss-Newton Hessian ``H``:
+the evidence, from every start (e.g. the network run on the crop and on the crop rotated
+upright), keeps the start with the lowest negative log posterior, and builds the posterior in
+the network's families from the fit's Gauss-Newton Hessian ``H``. The evidence is a list of
+terms (:class:`~hkpd.conditioning.EvidenceTerm`): the keypoints' :class:`KeypointTerm`, then
+any ``extra_terms``; the Laplace step reads only ``H`` and the fitted state, so it counts every
+term's evidence without knowing the terms:
 
 - the global rotation and camera are *conditioned on* (fixed at the fit; samples vary pose and
   shape only, as they do for the network's own distribution);
@@ -21,19 +24,18 @@ Nothing here raises for a failed fit: a :class:`KeypointFit` without ``condition
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
 
 from hkpd.body import BodyModel
 from hkpd.conditioning.config import EvidenceConfig
-from hkpd.conditioning.fit_residuals import (
-    NUM_BODY_JOINTS,
-    POSE,
-    SHAPE,
-    FitResiduals,
-)
+from hkpd.conditioning.evidence_term import EvidenceTerm
+from hkpd.conditioning.fit_objective import FitObjective
+from hkpd.conditioning.fit_state import NUM_BODY_JOINTS, POSE, SHAPE
 from hkpd.conditioning.keypoint_evidence import KeypointEvidence
+from hkpd.conditioning.keypoint_term import KeypointTerm
 from hkpd.conditioning.laplace import marginal_precisions, matrix_fisher_from_precision
 from hkpd.conditioning.levenberg_marquardt import SolverResult, levenberg_marquardt
 from hkpd.distributions import BodyDistribution
@@ -55,6 +57,8 @@ class KeypointFit:
         keypoint_weights: ``(17,)`` robust weights of the winning start's keypoints (1 = fully
             trusted, near 0 = treated as a detector outlier; 0 where there is no evidence).
         seconds: wall time of the fit.
+        terms: names of the evidence terms the fit weighed (``("keypoints",)`` without extra
+            terms; empty when it did not run).
     """
 
     conditioned: BodyDistribution | None
@@ -67,28 +71,31 @@ class KeypointFit:
     converged: bool = False
     keypoint_weights: torch.Tensor | None = None
     seconds: float = 0.0
+    terms: tuple[str, ...] = ()
 
     @property
     def succeeded(self) -> bool:
         return self.conditioned is not None
 
 
-def fit_keypoints(
-    body: BodyModel, starts: BodyDistribution, evidence: KeypointEvidence, config: EvidenceConfig
+def fit_evidence(
+    body: BodyModel,
+    starts: BodyDistribution,
+    terms: Sequence[EvidenceTerm],
+    config: EvidenceConfig,
 ) -> SolverResult:
     """Run the fit from every start (see :func:`condition_on_keypoints`).
 
     Args:
         body: float64 body model.
         starts: B network predictions; each start is regularised by its own prior.
-        evidence: the observed keypoints.
+        terms: the evidence terms (e.g. ``[KeypointTerm(evidence, config)]``).
         config: the evidence settings.
     """
-    residuals = FitResiduals(body, starts, evidence, config)
+    objective = FitObjective(body, starts, terms, config)
     return levenberg_marquardt(
-        residuals,
-        residuals.start(),
-        robust_scale=config.robust_scale,
+        objective,
+        objective.start(),
         max_iterations=config.max_iterations,
         tolerance=config.tolerance,
     )
@@ -124,6 +131,7 @@ def condition_on_keypoints(
     starts: BodyDistribution,
     evidence: KeypointEvidence,
     config: EvidenceConfig | None = None,
+    extra_terms: Sequence[EvidenceTerm] = (),
 ) -> KeypointFit:
     """Fit the body to the evidence from every start and return the conditioned posterior.
 
@@ -132,6 +140,8 @@ def condition_on_keypoints(
         starts: B >= 1 network predictions (priors and starting points).
         evidence: the observed keypoints in the crop the starts' cameras refer to.
         config: the evidence settings (defaults: :class:`EvidenceConfig`).
+        extra_terms: evidence beyond the keypoints (:class:`EvidenceTerm`), weighed in the same
+            fit and the same Laplace step; its names must differ from ``"keypoints"``.
 
     Returns:
         A :class:`KeypointFit`; ``conditioned`` is None (with ``reason``) when there were fewer
@@ -154,7 +164,8 @@ def condition_on_keypoints(
     ):
         return KeypointFit(None, "the network's prediction is not finite", count)
     with torch.no_grad():
-        result = fit_keypoints(body, starts64, evidence, config)
+        terms = (KeypointTerm(evidence, config), *extra_terms)
+        result = fit_evidence(body, starts64, terms, config)
         costs = torch.where(torch.isfinite(result.cost), result.cost, torch.inf)
         best = int(costs.argmin())
         conditioned = (
@@ -169,7 +180,9 @@ def condition_on_keypoints(
         "initial_costs": result.initial_cost,
         "iterations": result.iterations,
         "converged": bool(result.converged[best]),
-        "keypoint_weights": result.keypoint_weights[best] * evidence.observed.to(torch.float64),
+        "keypoint_weights": result.robust_weights[KeypointTerm.name][best]
+        * evidence.observed.to(torch.float64),
+        "terms": tuple(term.name for term in terms),
         "seconds": time.perf_counter() - began,
     }
     if conditioned is None or not conditioned.is_finite():
