@@ -105,3 +105,23 @@ def test_missing_inputs_are_clear_errors(tmp_path, capsys) -> None:
     assert "COCO folder" in capsys.readouterr().err
     assert tune_main([str(checkpoint), "--coco", str(tmp_path), "--setting", "x=1"]) == 2
     assert "names among" in capsys.readouterr().err
+
+
+def test_write_to_stores_the_one_setting_in_a_checkpoint_copy(tmp_path, capsys) -> None:
+    from hkpd.network.checkpoint import read_checkpoint, stored_evidence_config
+
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    checkpoint = save_checkpoint(
+        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    coco = _coco_folder_of_the_shipped_photo(tmp_path / "coco")
+    arguments = [str(checkpoint), "--coco", str(coco), "--count", "2", "--samples", "2"]
+    tuned = tmp_path / "tuned.pt"
+    assert tune_main([*arguments, "--write-to", str(tuned)]) == 2  # which setting?
+    assert "exactly one --setting" in capsys.readouterr().err and not tuned.exists()
+    setting = ["--setting", "w=0.3,spread=marginal", "--no-network-row"]
+    assert tune_main([*arguments, *setting, "--write-to", str(tuned)]) == 0
+    assert f"in {tuned}" in capsys.readouterr().out
+    stored = stored_evidence_config(read_checkpoint(tuned))
+    assert EvidenceConfig.from_dict(stored, str(tuned)) == parse_setting("w=0.3,spread=marginal")
+    assert stored_evidence_config(read_checkpoint(checkpoint)) == {}  # the source is unchanged

@@ -1,9 +1,17 @@
-"""``EvidenceConfig``: the few numbers that set how strongly 2D keypoints update the prior."""
+"""``EvidenceConfig``: the few numbers that set how strongly 2D keypoints update the prior.
+
+They depend on the network (how over- or under-confident it is), so the tuned ones travel with
+its weights: ``hkpd-tune-evidence --write-to`` stores :meth:`EvidenceConfig.to_dict` in the
+checkpoint (``hkpd.network.checkpoint``: a plain dict, as the network layer knows no
+conditioning), and ``Predictor.from_pretrained`` reads it back with
+:meth:`EvidenceConfig.from_dict`; a checkpoint without one gets the defaults below.
+"""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields, replace
 
 
 @dataclass(frozen=True)
@@ -74,3 +82,57 @@ class EvidenceConfig:
             )
         if self.min_keypoints < 1 or self.max_iterations < 1:
             raise ValueError("EvidenceConfig.min_keypoints and max_iterations must be >= 1")
+
+    def to_dict(self) -> dict[str, float | int | str]:
+        """Every setting by field name: plain data, as a checkpoint stores it."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, object], source: str) -> EvidenceConfig:
+        """The settings ``values`` names (the defaults for the others), as stored in ``source``
+        (a checkpoint's path: every error names it).
+
+        Raises:
+            ValueError: a name that is not a setting (nothing is ignored silently: a setting
+                this version does not know would change the posterior), a value of the wrong
+                type, or one the config refuses.
+        """
+        defaults = cls()
+        known = {field.name for field in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(
+                f"{source}: unknown evidence setting(s) {unknown} (this hkpd knows "
+                f"{sorted(known)}); store the settings again with hkpd-tune-evidence --write-to"
+            )
+        chosen = {
+            name: _stored_value(name, getattr(defaults, name), value, source)
+            for name, value in values.items()
+        }
+        try:
+            return replace(defaults, **chosen)
+        except ValueError as error:
+            raise ValueError(f"{source}: {error}") from error
+
+
+def _stored_value(
+    name: str, default: float | int | str, value: object, source: str
+) -> float | int | str:
+    """``value`` as the type of the setting ``name`` (whose default is ``default``).
+
+    Raises:
+        ValueError: naming ``source``, when ``value`` is not of that type (booleans never are;
+            an integer counts as a float, a whole float as an integer).
+    """
+    if not isinstance(value, bool):
+        if isinstance(default, str) and isinstance(value, str):
+            return value
+        if isinstance(default, float) and isinstance(value, int | float):
+            return float(value)
+        if (
+            isinstance(default, int)
+            and isinstance(value, int | float)
+            and float(value).is_integer()
+        ):
+            return int(value)
+    raise ValueError(f"{source}: evidence setting {name} must be like {default!r}, got {value!r}")

@@ -184,6 +184,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--out", type=Path, help="also write the markdown table here")
+    parser.add_argument(
+        "--write-to",
+        type=Path,
+        metavar="CHECKPOINT",
+        help="store the one --setting given in a copy of the checkpoint written here (may be "
+        "the checkpoint itself): Predictor.from_pretrained then uses it",
+    )
     return parser
 
 
@@ -199,7 +206,14 @@ def main(argv: list[str] | None = None) -> int:
             raise FileNotFoundError(f"COCO folder {arguments.coco} does not exist")
         if arguments.count < 1 or arguments.samples < 2:
             raise ValueError("--count must be >= 1 and --samples >= 2")
+        if arguments.write_to is not None and len(arguments.setting) != 1:
+            raise ValueError("--write-to stores one setting: give exactly one --setting")
         table = run_tuning(arguments, configs)
+        if arguments.write_to is not None:
+            from hkpd.network.checkpoint import store_evidence_config
+
+            store_evidence_config(arguments.checkpoint, arguments.write_to, configs[0].to_dict())
+            table += f"\n\nStored {describe(configs[0])} in {arguments.write_to}."
     except (FileNotFoundError, ValueError) as error:
         print(f"hkpd-tune-evidence: error: {error}", file=sys.stderr)
         return 2

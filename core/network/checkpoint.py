@@ -17,8 +17,11 @@ A checkpoint is one ``torch.save`` file holding plain data only (loadable with
 | ``rng`` | random states (torch CPU and CUDA, numpy, python) at the save, so a resumed run
   continues bit-exactly (absent in exported weights) |
 | ``checksum`` | SHA-256 of the model tensors' bytes (format 2): a damaged file is refused |
+| ``evidence_config`` | the evidence settings tuned for these weights (format 3, optional): a
+  plain dict that :meth:`hkpd.conditioning.EvidenceConfig.from_dict` reads; absent, the
+  predictor uses ``EvidenceConfig()``'s defaults |
 
-Format 1 files (no checksum) still load.
+Format 1 files (no checksum) and format 2 files (no evidence settings) still load.
 """
 
 from __future__ import annotations
@@ -32,7 +35,14 @@ import numpy as np
 import torch
 
 FORMAT = "hkpd-checkpoint"
-VERSION = 2
+VERSION = 3
+
+EVIDENCE_CONFIG_KEY = "evidence_config"
+"""The evidence settings tuned for the weights (``hkpd-tune-evidence --write-to``); checkpoints
+older than it lack it, and their predictor takes the conditioning defaults."""
+
+EvidenceSettings = dict[str, float | int | str]
+"""Evidence settings as stored: :class:`~hkpd.conditioning.EvidenceConfig` field -> value."""
 
 CALIBRATION_KEY = "log_concentration_scale"
 """The network's per-joint concentration calibration buffer; checkpoints older than it lack it
@@ -52,12 +62,15 @@ def save_checkpoint(
     samples_seen: int,
     optimizer: torch.optim.Optimizer | None = None,
     half_precision: bool = False,
+    evidence_config: EvidenceSettings | None = None,
 ) -> Path:
     """Write a checkpoint atomically (to a temporary name, then renamed).
 
     Args:
         half_precision: store float tensors as float16 and no optimiser state (for shipping
             small weights; not for resuming).
+        evidence_config: evidence settings tuned for these weights (``EvidenceConfig.to_dict()``),
+            stored under :data:`EVIDENCE_CONFIG_KEY`; None stores none.
     """
     state = model.state_dict()
     if half_precision:
@@ -77,7 +90,35 @@ def save_checkpoint(
     if optimizer is not None and not half_precision:
         payload["optimizer"] = optimizer.state_dict()
         payload["rng"] = random_states()
+    if evidence_config is not None:
+        payload[EVIDENCE_CONFIG_KEY] = dict(evidence_config)
     payload["checksum"] = model_checksum(payload["model"])
+    return _write_payload(payload, path)
+
+
+def store_evidence_config(
+    source: Path | str, target: Path | str, settings: EvidenceSettings
+) -> Path:
+    """Copy the checkpoint ``source`` to ``target`` (which may be ``source``) with ``settings``
+    as its evidence settings, everything else as it was (weights, checksum, training state).
+
+    Raises:
+        FileNotFoundError, CheckpointError: as :func:`read_checkpoint`.
+    """
+    payload = read_checkpoint(source)
+    payload["version"] = VERSION
+    payload[EVIDENCE_CONFIG_KEY] = dict(settings)
+    return _write_payload(payload, Path(target))
+
+
+def stored_evidence_config(payload: dict) -> EvidenceSettings:
+    """The evidence settings a checkpoint read by :func:`read_checkpoint` stores (empty when it
+    stores none: older checkpoints, and those never tuned)."""
+    return dict(payload.get(EVIDENCE_CONFIG_KEY, {}))
+
+
+def _write_payload(payload: dict[str, Any], path: Path) -> Path:
+    """``torch.save`` atomically (to a temporary name, then renamed)."""
     partial = path.with_name(path.name + ".partial")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -158,6 +199,13 @@ def read_checkpoint(path: Path | str, map_location: str | torch.device = "cpu") 
         )
     if not isinstance(payload.get("model"), dict) or "network_config" not in payload:
         raise CheckpointError(f"{path} is an hkpd checkpoint without weights or architecture")
+    settings = payload.get(EVIDENCE_CONFIG_KEY, {})
+    if not isinstance(settings, dict) or not all(isinstance(key, str) for key in settings):
+        raise CheckpointError(
+            f"{path} has malformed evidence settings ('{EVIDENCE_CONFIG_KEY}' must map setting "
+            f"names to values, got {settings!r}); store them again with hkpd-tune-evidence "
+            "--write-to"
+        )
     expected = payload.get("checksum")
     if expected is not None and model_checksum(payload["model"]) != expected:
         raise CheckpointError(

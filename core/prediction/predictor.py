@@ -33,7 +33,7 @@ from hkpd.body import BodyModel
 from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
 from hkpd.devices import resolve_device
 from hkpd.distributions import BodyDistribution
-from hkpd.network.checkpoint import load_network
+from hkpd.network.checkpoint import load_network, stored_evidence_config
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
 from hkpd.prediction.mirror_reading import MirrorChoosingReader
@@ -110,6 +110,7 @@ class Predictor:
         path: str | os.PathLike[str] | None = None,
         device: str = "auto",
         mirror_reading: bool = True,
+        evidence_config: EvidenceConfig | None = None,
     ) -> Predictor:
         """Load a checkpoint (default: the shipped pretrained model).
 
@@ -117,10 +118,17 @@ class Predictor:
             path: a checkpoint written by ``hkpd-train`` or the shipped weights.
             device: ``auto`` (CUDA when available), ``cpu`` or ``cuda``.
             mirror_reading: as for the constructor.
+            evidence_config: None takes the evidence settings stored with the weights
+                (``hkpd-tune-evidence --write-to``; the defaults when none are stored).
         """
         resolved = resolve_device(device)
-        network, _ = load_network(Path(path) if path else shipped_model_path(), resolved)
-        return cls(network, resolved, mirror_reading=mirror_reading)
+        source = Path(path) if path else shipped_model_path()
+        network, payload = load_network(source, resolved)
+        if evidence_config is None:
+            evidence_config = EvidenceConfig.from_dict(stored_evidence_config(payload), str(source))
+        return cls(
+            network, resolved, evidence_config=evidence_config, mirror_reading=mirror_reading
+        )
 
     @torch.no_grad()
     def predict(
