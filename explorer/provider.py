@@ -10,15 +10,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 import torch
 
 from hkpd.prediction.posterior import BodyPosterior
-
-if TYPE_CHECKING:
-    from hkpd.prediction import Predictor
+from hkpd.prediction.predictor import Predictor, refuse_silhouette_model
 
 Box = tuple[float, float, float, float]
 
@@ -75,9 +73,6 @@ class PredictorProvider:
     """
 
     def __init__(self, path: str | Path | None = None, device: str = "auto") -> None:
-        from hkpd.prediction import Predictor
-        from hkpd.prediction.predictor import refuse_silhouette_model
-
         self.predictor: Predictor = Predictor.from_pretrained(path, device=device)
         refuse_silhouette_model(self.predictor, "the explorer")
 
