@@ -23,11 +23,13 @@ class ConcentrationSection:
         global_slider: "All joints (log10)".
         shape_slider: "Shape spread (log10)".
         joint_sliders: one slider per body joint, by joint name.
+        reset_button: "Reset concentrations".
     """
 
     global_slider: viser.GuiSliderHandle
     shape_slider: viser.GuiSliderHandle
     joint_sliders: dict[str, viser.GuiSliderHandle]
+    reset_button: viser.GuiButtonHandle
 
     def reset(self) -> None:
         """Every slider back to 1x (their callbacks find the state already reset)."""
@@ -47,7 +49,7 @@ def build_concentration_section(gui: viser.GuiApi, actions: StateActions) -> Con
                 for joint in joints:
                     joint_sliders[joint] = _exponent_slider(gui, joint.replace("_", " "))
         reset = gui.add_button("Reset concentrations", icon=viser.Icon.REFRESH)
-    section = ConcentrationSection(global_slider, shape_slider, joint_sliders)
+    section = ConcentrationSection(global_slider, shape_slider, joint_sliders, reset)
     global_slider.on_update(
         lambda _: actions.sampling_changed(state.set_global_exponent(global_slider.value))
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Protocol
 
 import viser
@@ -21,6 +22,23 @@ class OccluderActions(StateActions, Protocol):
     def occluders_changed(self, changed: bool) -> bool:
         """Redraw the boxes and predict again when ``changed``."""
         ...
+
+
+@dataclass(frozen=True)
+class OccluderControls:
+    """Handles of one occluder's folder.
+
+    Attributes:
+        folder: "Occluder #ident".
+        enabled: "On".
+        corners: the ``x0, y0, x1, y1`` sliders (photo pixels).
+        delete: "Delete".
+    """
+
+    folder: viser.GuiFolderHandle
+    enabled: viser.GuiCheckboxHandle
+    corners: tuple[viser.GuiSliderHandle, ...]
+    delete: viser.GuiButtonHandle
 
 
 class OccluderList:
@@ -42,7 +60,12 @@ class OccluderList:
         self._lock = threading.RLock()
         self._handles: list[viser.GuiFolderHandle] = []
         self._signature: tuple = ()
-        self._box_sliders: dict[int, list[viser.GuiSliderHandle]] = {}
+        self._controls: dict[int, OccluderControls] = {}
+
+    def controls(self, ident: int) -> OccluderControls:
+        """The controls of occluder ``ident``; KeyError when it is not listed."""
+        with self._lock:
+            return self._controls[ident]
 
     def show(self, occluders: tuple[Occluder, ...], image_size: tuple[int, int]) -> None:
         """Rebuild the list when occluders were added, deleted or toggled (by any tab); else
@@ -55,32 +78,31 @@ class OccluderList:
             self._signature = signature
             for handle in self._handles:
                 handle.remove()
-            self._handles, self._box_sliders = [], {}
+            self._handles, self._controls = [], {}
             with self._folder:
                 if not occluders:
                     self._handles.append(self._gui.add_folder("(none yet)"))
                 for occluder in occluders:
-                    self._add_occluder(occluder, image_size)
+                    controls = self._add_occluder(occluder, image_size)
+                    self._handles.append(controls.folder)
+                    self._controls[occluder.ident] = controls
 
-    def _add_occluder(self, occluder: Occluder, image_size: tuple[int, int]) -> None:
+    def _add_occluder(self, occluder: Occluder, image_size: tuple[int, int]) -> OccluderControls:
         gui, state, ident = self._gui, self._actions.state, occluder.ident
-        folder = gui.add_folder(f"Occluder #{ident}")
-        self._handles.append(folder)
-        with folder:
+        with gui.add_folder(f"Occluder #{ident}") as folder:
             enabled = gui.add_checkbox("On", occluder.enabled)
-            self._on_update(enabled, lambda: state.set_occluder_enabled(ident, enabled.value))
-            sliders = [
+            corners = tuple(
                 gui.add_slider(label, 0.0, float(image_size[k % 2]), 1.0, float(occluder.box[k]))
                 for k, label in enumerate(CORNER_LABELS)
-            ]
-            for slider in sliders:
-                self._on_update(
-                    slider,
-                    lambda: state.move_occluder(ident, tuple(float(s.value) for s in sliders)),
-                )
-            self._box_sliders[ident] = sliders
+            )
             delete = gui.add_button("Delete", color="red", icon=viser.Icon.TRASH)
-            delete.on_click(lambda _: self._actions.occluders_changed(state.delete_occluder(ident)))
+        self._on_update(enabled, lambda: state.set_occluder_enabled(ident, enabled.value))
+        for slider in corners:
+            self._on_update(
+                slider, lambda: state.move_occluder(ident, tuple(float(s.value) for s in corners))
+            )
+        delete.on_click(lambda _: self._actions.occluders_changed(state.delete_occluder(ident)))
+        return OccluderControls(folder, enabled, corners, delete)
 
     def _on_update(
         self, handle: viser.GuiCheckboxHandle | viser.GuiSliderHandle, edit: Callable[[], bool]
@@ -90,8 +112,7 @@ class OccluderList:
 
     def _sync_sliders(self, occluders: tuple[Occluder, ...]) -> None:
         for occluder in occluders:
-            for slider, value in zip(
-                self._box_sliders.get(occluder.ident, []), occluder.box, strict=False
-            ):
+            listed = self._controls.get(occluder.ident)
+            for slider, value in zip(listed.corners if listed else (), occluder.box, strict=False):
                 if abs(slider.value - value) > 0.5:
                     slider.value = round(value)

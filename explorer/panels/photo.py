@@ -57,15 +57,21 @@ class PhotoSection:
     Attributes:
         upload: "Load a photo".
         evidence: "Condition on 2D keypoints".
+        pick: "Pick the person" (the next drag picks the person).
+        forget: "Forget the person box".
         people: the person menu (hidden unless the photo shows several people).
         draw_mode: "Plain drag draws".
+        clear: "Remove all occluders".
         occluders: the list of occluders.
     """
 
     upload: viser.GuiUploadButtonHandle
     evidence: viser.GuiCheckboxHandle
+    pick: viser.GuiButtonHandle
+    forget: viser.GuiButtonHandle
     people: viser.GuiDropdownHandle[str]
     draw_mode: viser.GuiCheckboxHandle
+    clear: viser.GuiButtonHandle
     occluders: OccluderList
     _offering: bool = field(default=False, repr=False)
     """True while :meth:`show_people` sets the menu (that is not the user's choice)."""
@@ -124,7 +130,8 @@ def build_photo_section(gui: viser.GuiApi, actions: PhotoActions) -> PhotoSectio
         )
         clear = gui.add_button("Remove all occluders", icon=viser.Icon.TRASH)
         folder = gui.add_folder("Occluders", expand_by_default=True)
-    section = PhotoSection(upload, evidence, people, draw_mode, OccluderList(gui, folder, actions))
+    occluders = OccluderList(gui, folder, actions)
+    section = PhotoSection(upload, evidence, pick, forget, people, draw_mode, clear, occluders)
     upload.on_upload(
         lambda event: actions.load_upload(upload.value.name, upload.value.content, event.client)
     )

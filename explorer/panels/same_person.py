@@ -32,10 +32,12 @@ class SamePersonSection:
     Attributes:
         upload: "Add a photo of the same person".
         text: the photos and the combined vs the current photo's std.
+        clear: "Forget the added photos".
     """
 
     upload: viser.GuiUploadButtonHandle
     text: viser.GuiMarkdownHandle
+    clear: viser.GuiButtonHandle
 
     def show(self, text: str) -> None:
         """What the combined shape is made of (photos, std), or that there is none."""
@@ -64,4 +66,4 @@ def build_same_person_section(gui: viser.GuiApi, actions: SamePersonActions) -> 
         )
     )
     clear.on_click(lambda _: actions.clear_same_person())
-    return SamePersonSection(upload, text)
+    return SamePersonSection(upload, text, clear)

@@ -36,7 +36,8 @@ class SamplesSection:
     Attributes:
         num_samples: samples for the heatmap.
         num_displayed: sample meshes shown.
-        seed: the draw's seed ("Resample" moves it on).
+        seed: the draw's seed.
+        resample: "Resample" (moves the seed on).
         show_samples, show_heatmap, show_reprojection, show_fit: display switches.
         fit_opacity: opacity of the fit over the photo.
         heat_max: top of the colour scale, centimetres.
@@ -46,6 +47,7 @@ class SamplesSection:
     num_samples: viser.GuiSliderHandle
     num_displayed: viser.GuiSliderHandle
     seed: viser.GuiNumberHandle
+    resample: viser.GuiButtonHandle
     show_samples: viser.GuiCheckboxHandle
     show_heatmap: viser.GuiCheckboxHandle
     show_reprojection: viser.GuiCheckboxHandle
@@ -80,15 +82,15 @@ def build_samples_section(gui: viser.GuiApi, actions: SamplesActions) -> Samples
         heat_max = gui.add_slider("Colour scale top (cm)", 2.0, 40.0, 1.0, DEFAULT_MAX_CM)
         legend = gui.add_image(legend_image(DEFAULT_MAX_CM), label="Uncertainty")
     section = SamplesSection(
-        num_samples, num_displayed, seed, *switches, show_fit, fit_opacity, heat_max, legend
-    )
-    _wire(section, resample, actions)
+        num_samples, num_displayed, seed, resample, *switches, show_fit, fit_opacity, heat_max,
+        legend,
+    )  # fmt: skip
+    _wire(section, actions)
     return section
 
 
-def _wire(
-    section: SamplesSection, resample: viser.GuiButtonHandle, actions: SamplesActions
-) -> None:
+def _wire(section: SamplesSection, actions: SamplesActions) -> None:
+    """Connect the section's controls to ``actions``."""
     state = actions.state
     section.num_samples.on_update(
         lambda _: actions.sampling_changed(state.set_num_samples(section.num_samples.value))
@@ -97,7 +99,7 @@ def _wire(
         lambda _: actions.sampling_changed(state.set_num_displayed(section.num_displayed.value))
     )
     section.seed.on_update(lambda _: actions.sampling_changed(state.set_seed(section.seed.value)))
-    resample.on_click(lambda _: _resample(section, actions))
+    section.resample.on_click(lambda _: _resample(section, actions))
     for control in (section.show_fit, section.fit_opacity):
         control.on_update(
             lambda _: actions.show_fit(section.show_fit.value, section.fit_opacity.value)
