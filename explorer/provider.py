@@ -1,8 +1,10 @@
 """What the explorer needs from a predictor, as a small protocol, and the adapter to the real one.
 
-The app only calls ``provider.predict(image, occluders)`` and reads the posterior and (when
-there is one) the proxy representation from the result, so anything with that method can drive
-it: the library's :class:`hkpd.prediction.Predictor`, or a test double in the test suite.
+The app only calls ``provider.predict(image, occluders, evidence=..., bbox=...)`` and reads the
+posterior and (when there is one) the proxy representation from the result, so anything with
+that method can drive it: the library's :class:`hkpd.prediction.Predictor`, or a test double in
+the test suite. A provider that also has ``find_people`` (:class:`PeopleFinder`) lets the user
+choose among several people in a photo.
 """
 
 from __future__ import annotations
