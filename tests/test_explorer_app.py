@@ -194,6 +194,16 @@ def test_cli_missing_image_fails_clearly_without_traceback():
     assert "photo.jpg" in result.stderr and "Traceback" not in result.stderr
 
 
+def test_the_shipped_photo_is_the_installed_cc0_photo() -> None:
+    from hkpd.explorer.demo_photo import shipped_photo
+
+    path = shipped_photo()
+    assert path.name == "warrior_lunge.jpg" and path.is_file()
+    assert "warrior_lunge.jpg" in (path.parent / "NOTICE.md").read_text()  # its licence
+    with Image.open(path) as photo:
+        assert photo.size == (1080, 720)
+
+
 def test_cli_serves_the_demo_and_stops_cleanly_on_ctrl_c():
     env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
     process = subprocess.Popen(

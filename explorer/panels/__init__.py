@@ -2,7 +2,7 @@
 
 One builder per section: each section module has a ``build_*_section(gui, actions)`` that lays
 out its folder, wires its callbacks to a small *actions* protocol (what the callbacks may ask
-of the app) and returns a frozen dataclass of the handles the app updates later (viser's own
+of the app) and returns a dataclass of the handles the app updates later (viser's own
 examples do the same). :func:`build_panels` is the one place where sections are registered: it
 puts the status lines on top and the sections into tabs.
 
@@ -52,8 +52,8 @@ def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPa
     """Build the whole panel: the status lines, then a tab per task ("Photo": what goes in,
     "Distribution": what comes out and how it is drawn, "Teaching": what it means).
 
-    A new section: a module with its builder and handles, one line here, one field in
-    :class:`ExplorerPanels` (see docs/explorer.md).
+    A new section: a module with its builder, handles and actions; one line here, one field in
+    :class:`ExplorerPanels`, its actions among the bases of :class:`PanelActions`.
     """
     gui = server.gui
     gui.configure_theme(control_width="large", show_logo=False, show_share_button=False)
