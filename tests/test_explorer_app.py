@@ -306,6 +306,15 @@ def test_one_person_or_no_finder_hides_the_choice(app):
     assert app.people == () and not app.panels.photo.people.visible
 
 
+def test_pick_the_person_says_to_drag_a_box(app):
+    assert app.wait_idle(30)  # no job left to overwrite the status line
+    app.panels.photo.pick.value = True  # its callbacks run, as for a click in the browser
+    try:
+        assert "Drag a box around the person" in app.panels.status.line.content
+    finally:
+        app.pick_person_next(False)
+
+
 def test_a_silhouette_model_is_refused_at_start(tmp_path) -> None:
     import torch
 
