@@ -47,8 +47,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_explorer_double import OcclusionAwareDouble
 
 from hkpd.explorer.app import ExplorerApp
-from hkpd.explorer.cli import shipped_photo
 from hkpd.explorer.colour_map import uncertainty_colours
+from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.explorer.provider import PredictorProvider
 from hkpd.prediction.image_input import load_image
 

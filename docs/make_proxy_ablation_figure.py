@@ -30,7 +30,7 @@ from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator, eval
 from hkpd.evaluation.image_proxy_blanking import WithoutImageProxy
 from hkpd.evaluation.real_photos import evaluate_photos, load_coco_people
 from hkpd.evaluation.synthetic import evaluate_batches
-from hkpd.explorer.cli import shipped_photo
+from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.poses import pose_source
 from hkpd.prediction import Predictor
 from hkpd.prediction.network_input import prepare_network_input

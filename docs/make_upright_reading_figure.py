@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from hkpd.explorer.cli import shipped_photo
+from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.prediction import Predictor
 from hkpd.prediction.overview import BACKGROUND, TEXT, _font, draw_skeletons
 

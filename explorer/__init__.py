@@ -7,17 +7,22 @@ To drive it from Python with any predictor::
     from hkpd.explorer import ExplorerApp, PredictionResult
 
     class MyProvider:
-        def predict(self, image, occluders) -> PredictionResult: ...
+        def predict(self, image, occluders, evidence=True, bbox=None) -> PredictionResult:
+            ...  # image (H, W, 3) uint8 RGB; occluders and bbox: (x0, y0, x1, y1) photo pixels
 
     app = ExplorerApp(MyProvider(), image, port=8080)   # image: (H, W, 3) uint8 RGB
     print(app.url)
 
+(``evidence``: condition on the photo's 2D keypoints, else the network alone; ``bbox``: look
+for the person only inside this box, None: anywhere; see :class:`PosteriorProvider`.)
+
 Modules: ``state`` (app state), ``worker`` (coalescing background worker), ``provider``
 (the predictor protocol and the adapter to :class:`hkpd.prediction.Predictor`),
-``posterior_view`` (samples, heatmap, joint axes), ``scene`` and ``panels`` (viser scene and
-GUI), ``app`` (wiring), ``photo_geometry``, ``colour_map``, ``upload``, ``export``,
-``demo_scene`` and ``cli``. Names below are imported lazily so that ``import hkpd.explorer``
-does not start viser.
+``posterior_view`` (samples, heatmap, joint axes), ``scene`` (the viser scene), ``panels``
+(the GUI: one builder per section, arranged in tabs by ``panels.build_panels``), ``app``
+(wiring), ``photo_geometry``, ``colour_map``, ``upload``, ``export``, ``demo_photo`` (the
+shipped photo), ``demo_scene`` (the synthetic scene) and ``cli``. Names below are imported
+lazily so that ``import hkpd.explorer`` does not start viser.
 """
 
 from __future__ import annotations

@@ -22,7 +22,9 @@ import viser
 
 from hkpd.distributions import MatrixFisher
 from hkpd.explorer.export import meshes_file, png_bytes
-from hkpd.explorer.panels import ExplorerPanels
+from hkpd.explorer.panels import build_panels
+from hkpd.explorer.panels.same_person import ONLY_CURRENT_PHOTO
+from hkpd.explorer.panels.samples import DEFAULT_FIT_OPACITY
 from hkpd.explorer.photo_geometry import (
     PhotoPlacement,
     quaternion_to_matrix,
@@ -55,7 +57,6 @@ BODY_HALF_SPAN_M = 0.95
 (outstretched arms reach ~0.85 m), so its hand never goes under the panel."""
 SCREENSHOT_SIZE = (720, 1280)
 """``(height, width)`` of the screenshot requested from the browser."""
-ONLY_CURRENT_PHOTO = "*Only the current photo so far.*"
 
 
 @dataclass
@@ -114,15 +115,15 @@ class ExplorerApp:
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         self.scene = ExplorerScene(self.server)
-        self.panels = ExplorerPanels(self.server, self)
+        self.panels = build_panels(self.server, self)
         self.server.scene.on_rect_select(modifier="shift")(self._on_rect_select)
         self.server.on_client_connect(lambda client: self._frame_client(client, wait_s=5.0))
         self._plain_drag = False
         self._pick_person = False
         self._overlay: FitOverlay | None = None
-        self._fit_visible, self._fit_opacity = True, 0.55
+        self._fit_visible, self._fit_opacity = True, DEFAULT_FIT_OPACITY
         self.state.set_image(image.shape[1], image.shape[0], person_box)
-        self.panels.show_occluders((), self.state.image_size)
+        self.panels.photo.occluders.show((), self.state.image_size)
         self.worker.start()
         self.worker.submit("predict", self._predict_job)
 
@@ -210,9 +211,12 @@ class ExplorerApp:
         return self.set_person_box(people[index])
 
     def pick_person_next(self, enabled: bool = True) -> None:
-        """The next box dragged on the photo picks the person instead of adding an occluder."""
+        """The next box dragged on the photo picks the person instead of adding an occluder
+        (the status line says so)."""
         with self._lock:
             self._pick_person = enabled
+        if enabled:
+            self.panels.status.show_picking()
 
     def set_plain_drag_draws(self, enabled: bool) -> None:
         """Also draw occluders with a plain left drag (the camera then stops orbiting)."""
@@ -229,7 +233,7 @@ class ExplorerApp:
         if changed:
             snapshot = self.state.snapshot()
             self.scene.show_occluders(snapshot.occluders)
-            self.panels.show_occluders(snapshot.occluders, snapshot.image_size)
+            self.panels.photo.occluders.show(snapshot.occluders, snapshot.image_size)
             self.worker.submit("predict", self._predict_job, delay_s=PREDICTION_DEBOUNCE_S)
         return changed
 
@@ -316,7 +320,6 @@ class ExplorerApp:
         with self._lock:
             picking, self._pick_person = self._pick_person, False
         if picking:
-            self.panels.show_picking(False)
             if box is None or not self.set_person_box(box):
                 self._notify(event.client, "No person box", "Drag a box around the person.")
             return
@@ -345,7 +348,7 @@ class ExplorerApp:
         with self._lock:
             image, token = self._image, self._image_token
         started = time.perf_counter()
-        self.panels.show_busy(True)
+        self.panels.status.show_busy()
         try:
             result = self.provider.predict(
                 image, snapshot.active_boxes, evidence=snapshot.evidence, bbox=snapshot.person_box
@@ -353,8 +356,6 @@ class ExplorerApp:
         except NoPersonFoundError:
             self._no_person()
             return
-        finally:
-            self.panels.show_busy(False)
         self.timings.predict = time.perf_counter() - started
         self._show_prediction(result, image, token)
 
@@ -371,7 +372,7 @@ class ExplorerApp:
             if token != self._image_token:
                 return
             self._people = people
-        self.panels.show_people(len(people))
+        self.panels.photo.show_people(len(people))
 
     def _no_person(self, client: viser.ClientHandle | None = None) -> None:
         """Tell every tab (or ``client``) how to point at the person."""
@@ -379,7 +380,7 @@ class ExplorerApp:
             "No person was found. Click **Pick the person**, then drag a box around them on "
             "the photo (or start hkpd-explore with --bbox x0 y0 x1 y1)."
         )
-        self.panels.show_status(f"**{advice}**")
+        self.panels.status.show_status(f"**{advice}**")
         clients = [client] if client is not None else self.server.get_clients().values()
         for each in clients:
             self._notify(each, "No person found", advice.replace("**", ""), error=True)
@@ -408,7 +409,7 @@ class ExplorerApp:
             token = self._image_token
             self.state.set_image(image.shape[1], image.shape[0])
         snapshot = self.state.snapshot()
-        self.panels.show_occluders(snapshot.occluders, snapshot.image_size)
+        self.panels.photo.occluders.show(snapshot.occluders, snapshot.image_size)
         self.scene.show_person_box(None)
         self._show_prediction(result, image, token)
         self._notify(client, "Photo loaded", name)
@@ -436,7 +437,7 @@ class ExplorerApp:
         self.scene.show_keypoints(
             posterior.keypoints.cpu().numpy(), posterior.confidences.cpu().numpy()
         )
-        self.panels.show_proxy(result.proxy)
+        self.panels.teaching.show_proxy(result.proxy)
         self._sample_job()
         if self.state.snapshot().same_person or self.scene.combined_shown:
             self._show_combined()
@@ -481,7 +482,7 @@ class ExplorerApp:
             with self._lock:
                 self._combined = None
             self.scene.show_combined_shape(None, None)
-            self.panels.show_same_person(ONLY_CURRENT_PHOTO)
+            self.panels.same_person.show(ONLY_CURRENT_PHOTO)
         else:
             posterior = result.posterior
             current = (posterior.shape_mean.detach().cpu().double(),
@@ -497,7 +498,7 @@ class ExplorerApp:
                 combined.tpose_vertices.detach().cpu().numpy(), uncertainty, title
             )
             names = ", ".join(s.name for s in added)
-            self.panels.show_same_person(
+            self.panels.same_person.show(
                 f"**{combined.count} photos** of this person (the current one + {names}).\n\n"
                 f"Mean shape std {combined.mean_std:.3f} (current photo alone "
                 f"{float(current[1].mean()):.3f}); T-pose vertex uncertainty "
@@ -529,11 +530,11 @@ class ExplorerApp:
         network_posterior = result.posterior.prior
         if network_posterior is not None:
             prior = joint_factor * MatrixFisher(network_posterior.F[joint].double()).concentration
-        self.panels.show_teaching(
+        self.panels.teaching.show_teaching(
             view.axes.joint, view.axes.concentrations, joint_factor, prior_concentrations=prior
         )
-        self.panels.show_source(result.posterior)
-        self.panels.show_status(
+        self.panels.status.show_source(result.posterior)
+        self.panels.status.show_status(
             f"Prediction {self.timings.predict * 1000:.0f} ms · "
             f"{snapshot.num_samples} samples + heatmap {self.timings.sample * 1000:.0f} ms · "
             f"drawing {self.timings.draw * 1000:.0f} ms"
@@ -556,7 +557,7 @@ class ExplorerApp:
         message = f"{type(error).__name__}: {error}"
         self.errors.append(f"{lane}: {message}")
         print(f"hkpd-explore: could not {lane}: {message}", file=sys.stderr, flush=True)
-        self.panels.show_status(f"**Could not {lane}:** {message}")
+        self.panels.status.show_status(f"**Could not {lane}:** {message}")
         for client in self.server.get_clients().values():
             self._notify(client, f"Could not {lane}", message, error=True)
 

@@ -14,17 +14,16 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.resources
 import math
 import signal
 import sys
 import threading
 import webbrowser
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
+from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.explorer.provider import PosteriorProvider, PredictorProvider
 from hkpd.explorer.state import MAX_DISPLAYED_SAMPLES, MAX_SAMPLES
 
@@ -81,24 +80,18 @@ def _load_photo(path: str | None, demo: str = "photo") -> np.ndarray:
 
         return render_demo_scene().image
     if path is None:
-        path = str(shipped_photo())
+        try:
+            path = str(shipped_photo())
+        except FileNotFoundError as error:
+            raise SystemExit(
+                f"hkpd-explore: {error}; give a photo or use --demo synthetic"
+            ) from None
     from hkpd.prediction.image_input import ImageInputError, load_image
 
     try:
         return np.ascontiguousarray(load_image(path).pixels)
     except ImageInputError as error:
         raise SystemExit(f"hkpd-explore: cannot use {path!r}: {error}") from None
-
-
-def shipped_photo() -> Path:
-    """The CC0 photo shipped in ``hkpd.assets`` (``assets/photos/NOTICE.md``)."""
-    resource = importlib.resources.files("hkpd.assets").joinpath("photos", "warrior_lunge.jpg")
-    if not resource.is_file():
-        raise SystemExit(
-            "hkpd-explore: the shipped photo is missing from this installation; give a photo "
-            "or use --demo synthetic"
-        )
-    return Path(str(resource))
 
 
 def _build_provider(args: argparse.Namespace) -> PosteriorProvider:

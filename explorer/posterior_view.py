@@ -13,9 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from hkpd.distributions.kinematic_matrix_fisher import compose_global_rotations
 from hkpd.explorer.state import StateSnapshot
-from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
+from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS, compose_global_rotations
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.uncertainty import vertex_uncertainty
 

@@ -1,8 +1,10 @@
 """What the explorer needs from a predictor, as a small protocol, and the adapter to the real one.
 
-The app only calls ``provider.predict(image, occluders)`` and reads the posterior and (when
-there is one) the proxy representation from the result, so anything with that method can drive
-it: the library's :class:`hkpd.prediction.Predictor`, or a test double in the test suite.
+The app only calls ``provider.predict(image, occluders, evidence=..., bbox=...)`` and reads the
+posterior and (when there is one) the proxy representation from the result, so anything with
+that method can drive it: the library's :class:`hkpd.prediction.Predictor`, or a test double in
+the test suite. A provider that also has ``find_people`` (:class:`PeopleFinder`) lets the user
+choose among several people in a photo.
 """
 
 from __future__ import annotations
@@ -10,15 +12,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 import torch
 
 from hkpd.prediction.posterior import BodyPosterior
-
-if TYPE_CHECKING:
-    from hkpd.prediction import Predictor
+from hkpd.prediction.predictor import Predictor, refuse_silhouette_model
 
 Box = tuple[float, float, float, float]
 
@@ -75,9 +75,6 @@ class PredictorProvider:
     """
 
     def __init__(self, path: str | Path | None = None, device: str = "auto") -> None:
-        from hkpd.prediction import Predictor
-        from hkpd.prediction.predictor import refuse_silhouette_model
-
         self.predictor: Predictor = Predictor.from_pretrained(path, device=device)
         refuse_silhouette_model(self.predictor, "the explorer")
 

@@ -184,7 +184,10 @@ class ExplorerState:
     def occluder(self, ident: int) -> Occluder:
         """The occluder with this id; KeyError if it was deleted."""
         with self._lock:
-            return self._occluders[self._position(ident)]
+            index = self._find(ident)
+            if index is None:
+                raise KeyError(f"no occluder with id {ident}")
+            return self._occluders[index]
 
     # ------------------------------------------------------------------ photo
     def set_image(
@@ -259,10 +262,9 @@ class ExplorerState:
     def clear_same_person(self) -> bool:
         """Forget the further photos of the person; False if there were none."""
         with self._lock:
-            if not self._same_person:
-                return False
+            had_photos = bool(self._same_person)
             self._same_person.clear()
-            return True
+            return had_photos
 
     # ------------------------------------------------------------------ occluders
     def add_occluder(self, box: tuple[float, float, float, float]) -> Occluder | None:
@@ -280,11 +282,9 @@ class ExplorerState:
     def move_occluder(self, ident: int, box: tuple[float, float, float, float]) -> bool:
         """Give an occluder a new box (clamped). False if unchanged, gone, or clamped away."""
         with self._lock:
-            if ident not in {o.ident for o in self._occluders}:
-                return False
+            index = self._find(ident)
             clamped = clamp_box(box, *self.image_size)
-            index = self._position(ident)
-            if clamped is None or clamped == self._occluders[index].box:
+            if index is None or clamped is None or clamped == self._occluders[index].box:
                 return False
             self._occluders[index] = replace(self._occluders[index], box=clamped)
             self._prediction_version += 1
@@ -293,10 +293,8 @@ class ExplorerState:
     def set_occluder_enabled(self, ident: int, enabled: bool) -> bool:
         """Switch an occluder on or off; False if unchanged or gone."""
         with self._lock:
-            if ident not in {o.ident for o in self._occluders}:
-                return False
-            index = self._position(ident)
-            if self._occluders[index].enabled == bool(enabled):
+            index = self._find(ident)
+            if index is None or self._occluders[index].enabled == bool(enabled):
                 return False
             self._occluders[index] = replace(self._occluders[index], enabled=bool(enabled))
             self._prediction_version += 1
@@ -305,9 +303,10 @@ class ExplorerState:
     def delete_occluder(self, ident: int) -> bool:
         """Remove an occluder; False if it was already gone (two tabs clicking delete)."""
         with self._lock:
-            if ident not in {o.ident for o in self._occluders}:
+            index = self._find(ident)
+            if index is None:
                 return False
-            del self._occluders[self._position(ident)]
+            del self._occluders[index]
             self._prediction_version += 1
             return True
 
@@ -334,23 +333,11 @@ class ExplorerState:
 
     def set_global_exponent(self, exponent: float) -> bool:
         """log10 of the factor applied to every joint's concentration, clipped to [-1, 1]."""
-        value = _clip_exponent(exponent)
-        with self._lock:
-            if self._global_exponent == value:
-                return False
-            self._global_exponent = value
-            self._sampling_version += 1
-            return True
+        return self._set_sampling("_global_exponent", _clip_exponent(exponent))
 
     def set_shape_std_exponent(self, exponent: float) -> bool:
         """log10 of the factor on the shape standard deviations, clipped to [-1, 1]."""
-        value = _clip_exponent(exponent)
-        with self._lock:
-            if self._shape_std_exponent == value:
-                return False
-            self._shape_std_exponent = value
-            self._sampling_version += 1
-            return True
+        return self._set_sampling("_shape_std_exponent", _clip_exponent(exponent))
 
     def reset_concentrations(self) -> bool:
         """All factors back to 1x; False if they already were."""
@@ -369,33 +356,16 @@ class ExplorerState:
 
     def set_num_samples(self, count: int) -> bool:
         """Samples drawn for the heatmap, 2 .. MAX_SAMPLES."""
-        value = int(min(max(int(count), 2), MAX_SAMPLES))
-        with self._lock:
-            if value == self.num_samples:
-                return False
-            self.num_samples = value
-            self._sampling_version += 1
-            return True
+        return self._set_sampling("num_samples", int(min(max(int(count), 2), MAX_SAMPLES)))
 
     def set_num_displayed(self, count: int) -> bool:
         """Sample meshes drawn in the scene, 0 .. MAX_DISPLAYED_SAMPLES."""
         value = int(min(max(int(count), 0), MAX_DISPLAYED_SAMPLES))
-        with self._lock:
-            if value == self.num_displayed:
-                return False
-            self.num_displayed = value
-            self._sampling_version += 1
-            return True
+        return self._set_sampling("num_displayed", value)
 
     def set_seed(self, seed: int) -> bool:
         """Seed of the sample draw (>= 0)."""
-        value = max(int(seed), 0)
-        with self._lock:
-            if value == self.seed:
-                return False
-            self.seed = value
-            self._sampling_version += 1
-            return True
+        return self._set_sampling("seed", max(int(seed), 0))
 
     def next_seed(self) -> int:
         """Resample: move to the next seed and return it."""
@@ -407,19 +377,25 @@ class ExplorerState:
     def select_joint(self, joint: str) -> bool:
         """The joint shown in the teaching panel."""
         body_joint_index(joint)
+        return self._set_sampling("selected_joint", joint)
+
+    # ------------------------------------------------------------------ helpers
+    def _set_sampling(self, name: str, value: float | int | str) -> bool:
+        """Set the sampling control ``name`` (an attribute) to ``value``, already validated, and
+        make the samples stale; False if it already had that value."""
         with self._lock:
-            if joint == self.selected_joint:
+            if getattr(self, name) == value:
                 return False
-            self.selected_joint = joint
+            setattr(self, name, value)
             self._sampling_version += 1
             return True
 
-    # ------------------------------------------------------------------ helpers
-    def _position(self, ident: int) -> int:
+    def _find(self, ident: int) -> int | None:
+        """Position of the occluder ``ident`` in the list; None if it is gone."""
         for index, occluder in enumerate(self._occluders):
             if occluder.ident == ident:
                 return index
-        raise KeyError(f"no occluder with id {ident}")
+        return None
 
 
 def _clip_exponent(exponent: float) -> float:

@@ -154,7 +154,7 @@ def test_no_person_says_how_to_pick_one_and_a_person_box_predicts_there():
     explorer = ExplorerApp(provider, provider.double.scene.image, port=0)
     try:
         assert explorer.wait_idle(30)
-        assert "Pick the person" in explorer.panels.status.content and explorer.view is None
+        assert "Pick the person" in explorer.panels.status.line.content and explorer.view is None
         assert not explorer.errors  # an expected situation, not a failure
         assert explorer.set_person_box((20, 20, 300, 500))
         assert explorer.wait_idle(30)
@@ -173,7 +173,7 @@ def test_a_failing_prediction_is_reported_and_the_server_keeps_running():
     try:
         assert explorer.wait_idle(30)
         assert explorer.errors and "no person found" in explorer.errors[0]
-        assert "no person found" in explorer.panels.status.content
+        assert "no person found" in explorer.panels.status.line.content
         assert explorer.add_occluder((10, 10, 40, 40))  # still responsive
         assert explorer.wait_idle(30)
         assert len(explorer.errors) == 2 and explorer.view is None
@@ -192,6 +192,16 @@ def test_cli_missing_image_fails_clearly_without_traceback():
     result = run_cli("/no/such/photo.jpg", "--no-browser")
     assert result.returncode != 0
     assert "photo.jpg" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_the_shipped_photo_is_the_installed_cc0_photo() -> None:
+    from hkpd.explorer.demo_photo import shipped_photo
+
+    path = shipped_photo()
+    assert path.name == "warrior_lunge.jpg" and path.is_file()
+    assert "warrior_lunge.jpg" in (path.parent / "NOTICE.md").read_text()  # its licence
+    with Image.open(path) as photo:
+        assert photo.size == (1080, 720)
 
 
 def test_cli_serves_the_demo_and_stops_cleanly_on_ctrl_c():
@@ -279,7 +289,7 @@ def test_several_people_are_offered_and_choosing_one_predicts_inside_its_box():
     try:
         assert explorer.wait_idle(60)
         assert explorer.people == TwoPeopleProvider.BOXES
-        dropdown = explorer.panels.people
+        dropdown = explorer.panels.photo.people
         assert dropdown.visible and len(dropdown.options) == 2
         assert dropdown.value.startswith("Person 1 of 2")
         assert provider.calls == [None]  # showing the choice predicted nothing more
@@ -293,7 +303,16 @@ def test_several_people_are_offered_and_choosing_one_predicts_inside_its_box():
 
 
 def test_one_person_or_no_finder_hides_the_choice(app):
-    assert app.people == () and not app.panels.people.visible
+    assert app.people == () and not app.panels.photo.people.visible
+
+
+def test_pick_the_person_says_to_drag_a_box(app):
+    assert app.wait_idle(30)  # no job left to overwrite the status line
+    app.panels.photo.pick.value = True  # its callbacks run, as for a click in the browser
+    try:
+        assert "Drag a box around the person" in app.panels.status.line.content
+    finally:
+        app.pick_person_next(False)
 
 
 def test_a_silhouette_model_is_refused_at_start(tmp_path) -> None:
@@ -316,7 +335,7 @@ def test_a_silhouette_model_is_refused_at_start(tmp_path) -> None:
 def test_the_status_says_which_distribution_and_whether_it_was_read_upright() -> None:
     from types import SimpleNamespace
 
-    from hkpd.explorer.panels import source_text
+    from hkpd.explorer.panels.status import source_text
 
     fit = SimpleNamespace(evidence_count=15, seconds=0.043)
     conditioned = SimpleNamespace(

@@ -202,7 +202,9 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         # only has to become less sure.
         assert occluded > (1.0 if app.real_model else 1.5) * before, (before, occluded)
 
-        # 2. Drag the left elbow's concentration slider towards 0.1x (log10 -0.6).
+        # 2. Drag the left elbow's concentration slider towards 0.1x (log10 -0.6), in the
+        # "Distribution" tab.
+        page.get_by_role("tab", name="Distribution").click()
         page.get_by_text("Left arm", exact=True).click()
         label = page.locator("label", has_text="left elbow").first
         slider_id = label.get_attribute("for")
@@ -229,7 +231,9 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         assert app.last_screenshot is not None and app.last_screenshot.std() > 10
 
         # 4. Uploads through the browser: a bad file is refused with a notification and the
-        # photo stays; a good one replaces it (and clears the occluders).
+        # photo stays; a good one replaces it (and clears the occluders). "Load a photo" is the
+        # "Photo" tab's first control.
+        page.get_by_role("tab", name="Photo").click()
         upload = page.locator("input[type=file]").first
         upload.set_input_files(
             files=[{"name": "notes.txt", "mimeType": "text/plain", "buffer": b"hello"}]

@@ -45,7 +45,7 @@ def limb(app, name: str) -> float:
 @pytest.fixture(scope="module")
 def app():
     from hkpd.explorer.app import ExplorerApp
-    from hkpd.explorer.cli import shipped_photo
+    from hkpd.explorer.demo_photo import shipped_photo
     from hkpd.explorer.provider import PredictorProvider
     from hkpd.prediction.image_input import load_image
 

@@ -69,7 +69,7 @@ def nodes(app) -> set[str]:
 def test_before_any_added_photo_there_is_no_combined_shape(app):
     assert app.combined_shape is None
     assert "/combined/points" not in nodes(app)
-    assert "Only the current photo" in app.panels.same_person_text.content
+    assert "Only the current photo" in app.panels.same_person.text.content
 
 
 def test_an_added_photo_is_combined_with_the_current_one(app):
@@ -84,7 +84,7 @@ def test_an_added_photo_is_combined_with_the_current_one(app):
     torch.testing.assert_close(combined.betas_std, torch.full((10,), BASE_STD / 2**0.5).double())
     assert ("Photo added", "second.png: 2 photos of this person") in client.notifications
     assert {"/combined/base", "/combined/points", "/combined_title"} <= nodes(app)
-    text = app.panels.same_person_text.content
+    text = app.panels.same_person.text.content
     assert "**2 photos**" in text and "second.png" in text and "0.057" in text  # 0.08 / sqrt 2
     # A sure photo and an unsure one: the product weights them by precision.
     app.add_same_person_photo(photo(image, 3), "unsure.png", client)
@@ -128,7 +128,7 @@ def test_forgetting_the_added_photos_removes_the_combined_shape(app):
     assert app.wait_idle(60)
     assert app.combined_shape is None and app.state.snapshot().same_person == ()
     assert "/combined/points" not in nodes(app) and "/combined_title" not in nodes(app)
-    assert "Only the current photo" in app.panels.same_person_text.content
+    assert "Only the current photo" in app.panels.same_person.text.content
 
 
 def test_a_new_photo_starts_a_new_person(app):

@@ -1,0 +1,68 @@
+"""The two lines above the tabs: what the app is doing, and which distribution is shown."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import viser
+
+from hkpd.prediction.posterior import BodyPosterior
+
+PICKING_TEXT = "**Drag a box around the person** (Shift + drag on the photo)."
+BUSY_TEXT = "⏳ *Predicting…*"
+
+
+@dataclass(frozen=True)
+class StatusSection:
+    """Handles of the status lines.
+
+    Attributes:
+        line: timings, progress, errors and prompts.
+        source: which distribution is shown (:func:`source_text`).
+    """
+
+    line: viser.GuiMarkdownHandle
+    source: viser.GuiMarkdownHandle
+
+    def show_status(self, text: str) -> None:
+        """Replace the status line with ``text`` (markdown)."""
+        self.line.content = text
+
+    def show_picking(self) -> None:
+        """Say in the status line that the next drag picks the person."""
+        self.line.content = PICKING_TEXT
+
+    def show_busy(self) -> None:
+        """Say that a prediction is running (it can take a second on a CPU)."""
+        self.line.content = BUSY_TEXT
+
+    def show_source(self, posterior: BodyPosterior) -> None:
+        """Which distribution is shown, and why when the evidence fit fell back."""
+        self.source.content = source_text(posterior)
+
+
+def build_status_section(gui: viser.GuiApi) -> StatusSection:
+    """The status lines, empty until the first prediction."""
+    return StatusSection(line=gui.add_markdown("Starting…"), source=gui.add_markdown(""))
+
+
+def source_text(posterior: BodyPosterior) -> str:
+    """The status line for a posterior: which distribution is shown, why when the evidence fit
+    fell back, and whether the network read a copy of the crop turned upright or mirrored.
+
+    A custom provider's posterior may lack the evidence attributes: it then reads as the
+    network alone."""
+    reason = getattr(posterior, "fallback_reason", None)
+    if reason:
+        text = f"Network only: {reason}."
+    elif getattr(posterior, "conditioned", False):
+        fit = posterior.evidence_fit
+        text = f"Conditioned on {fit.evidence_count} keypoints (fit {fit.seconds * 1000:.0f} ms)."
+    else:
+        text = "Network only."
+    tilt = getattr(posterior, "upright_tilt_degrees", None)
+    if tilt is not None:
+        text += f" The person leans {abs(tilt):.0f}°: read from a copy turned upright."
+    if getattr(posterior, "mirror_read", False):
+        text += " Read from the mirror image (its body fits the keypoints better)."
+    return f"*{text}*"

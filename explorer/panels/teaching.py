@@ -1,0 +1,113 @@
+"""The teaching tab: the selected joint's concentrations, the proxy representation the network
+saw, and a short explanation of what is on screen."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+import viser
+
+from hkpd.explorer.panels.actions import StateActions
+from hkpd.kinematic_tree import BODY_JOINT_NAMES
+
+AXIS_NAMES = ("red", "green", "blue")
+"""The principal axes' arrow colours in the scene, in order."""
+
+EXPLANATION = """\
+**What you are looking at.** The photo (left) goes through the network, which predicts a
+*probability distribution* over 3D bodies, not one body. By default that distribution is then
+*conditioned on the 2D keypoints* the detector found (white dots): the network's distribution
+is the prior, the keypoints are the evidence. The solid body is the most likely one (the mode);
+the ghosts are samples from the distribution; the body on the right is coloured by how far its
+vertices move across 100 samples (dark purple: certain, yellow: uncertain; the colour bar gives
+centimetres).
+
+**Try it.** Shift + drag on the photo to hide part of the person behind a box: the keypoints
+under it stop counting as evidence, the joints that moved the hidden part fall back to the
+network's (wider) prior, and their limb spreads out and turns yellow. Untick *Condition on 2D
+keypoints* to see the network alone. The sliders scale each joint's *concentration* by hand.
+
+**The maths.** Each joint's rotation relative to its parent follows a matrix-Fisher
+distribution with parameter F = U S V&#x1D40;. The arrows at the selected joint are its principal
+axes; the numbers are the concentrations s&#x2C7C; + s&#x2096; for rotations about each axis:
+large means confident. Conditioning adds the keypoints' evidence to the network's F (Teaching:
+*network* vs *with evidence*).
+"""
+
+
+@dataclass(frozen=True)
+class TeachingSection:
+    """Handles of the teaching folder.
+
+    Attributes:
+        joint: the joint whose principal axes are shown.
+        axes_text: its concentrations as a table.
+        proxy_edges: the edge image the network saw.
+        proxy_heat: the 17 joint heatmaps over the edges.
+    """
+
+    joint: viser.GuiDropdownHandle[str]
+    axes_text: viser.GuiMarkdownHandle
+    proxy_edges: viser.GuiImageHandle
+    proxy_heat: viser.GuiImageHandle
+
+    def show_teaching(
+        self,
+        joint: str,
+        concentrations: np.ndarray,
+        factor: float,
+        prior_concentrations: np.ndarray | torch.Tensor | None = None,
+    ) -> None:
+        """Numbers for the selected joint's principal axes (and the network's own, when the
+        distribution is conditioned on the keypoints, so a class sees what the evidence adds).
+
+        Args:
+            joint: the joint's name.
+            concentrations: ``(3,)`` s_j + s_k about each principal axis, after the factor.
+            factor: the joint's concentration factor.
+            prior_concentrations: ``(3,)`` the network's own (same factor), or None.
+        """
+        title = f"**{joint.replace('_', ' ')}** (factor {factor:.2g}×): concentration "
+        title += "s&#x2C7C; + s&#x2096; about each principal axis"
+        if prior_concentrations is None:
+            header = "| axis | concentration |\n|---|---|"
+            columns = [concentrations]
+        else:
+            header = "| axis | with evidence | network (sorted) |\n|---|---|---|"
+            columns = [concentrations, sorted(np.asarray(prior_concentrations, float).tolist())]
+        rows = [
+            "| " + " | ".join([name, *(f"{float(value):,.1f}" for value in values)]) + " |"
+            for name, *values in zip(AXIS_NAMES, *columns, strict=True)
+        ]
+        self.axes_text.content = f"{title}\n\n{header}\n" + "\n".join(rows)
+
+    def show_proxy(self, proxy: torch.Tensor | None) -> None:
+        """The proxy representation the network saw (``(18, S, S)``: the edge image, then the
+        17 joint heatmaps), or nothing when the provider has none."""
+        self.proxy_edges.visible = self.proxy_heat.visible = proxy is not None
+        if proxy is None:
+            return
+        array = proxy.detach().float().cpu().numpy()
+        edges = (np.clip(array[0], 0, 1) * 255).astype(np.uint8)
+        self.proxy_edges.image = np.repeat(edges[:, :, None], 3, axis=2)
+        heat = np.clip(array[1:].max(axis=0), 0, 1)
+        colour = np.stack([heat * 255, heat * 170, 40 + heat * 0], axis=-1)
+        background = np.repeat(edges[:, :, None] * 0.35, 3, axis=2)
+        self.proxy_heat.image = np.clip(np.maximum(colour, background), 0, 255).astype(np.uint8)
+
+
+def build_teaching_section(gui: viser.GuiApi, actions: StateActions) -> TeachingSection:
+    """The "Teaching" folder, wired to ``actions``."""
+    with gui.add_folder("Teaching"):
+        joint = gui.add_dropdown(
+            "Joint", BODY_JOINT_NAMES, initial_value=actions.state.selected_joint
+        )
+        axes_text = gui.add_markdown("")
+        proxy_edges = gui.add_image(np.zeros((64, 64, 3), np.uint8), label="Edges")
+        proxy_heat = gui.add_image(np.zeros((64, 64, 3), np.uint8), label="Heatmaps")
+        with gui.add_folder("What am I looking at?", expand_by_default=False):
+            gui.add_markdown(EXPLANATION)
+    joint.on_update(lambda _: actions.sampling_changed(actions.state.select_joint(joint.value)))
+    return TeachingSection(joint, axes_text, proxy_edges, proxy_heat)
