@@ -7,7 +7,8 @@ median raw log-gain where the network has one (beyond ±6 it is clamped: such a 
 stuck there, see ``hkpd.training.revive_gains``). Left and right joints should look alike; the
 model card (section 5) used this table to find the stuck right collar.
 
-    python docs/joint_mode_errors.py assets/models/hkpd_hierarchical.pt other.pt --poses poses.npz
+    python docs/experiments/joint_mode_errors.py assets/models/hkpd_hierarchical.pt other.pt \\
+        --poses poses.npz
 """
 
 from __future__ import annotations

@@ -12,7 +12,8 @@ today's reading, the reading turned by the true lean, the best of the twelve in 
 the one chosen by fit. The upright reading and the predictor now choose so
 (:mod:`hkpd.prediction.network_lean`; model card, section 5).
 
-    python docs/torsoless_lean_search.py assets/models/hkpd_hierarchical.pt --poses poses.npz
+    python docs/experiments/torsoless_lean_search.py assets/models/hkpd_hierarchical.pt \\
+        --poses poses.npz
 """
 
 from __future__ import annotations

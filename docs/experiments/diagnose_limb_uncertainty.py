@@ -21,8 +21,9 @@ For synthetic test images with one limb covered (the occlusion-response protocol
    (F -> factor * F, a grid from 0.1 to 2), and the uncertainty ratio when both views use their
    own fitted factors. A diagnosis fitted on the images it reports, not a recipe.
 
-    python docs/diagnose_limb_uncertainty.py --model assets/models/hkpd_hierarchical.pt \\
-        --poses poses.npz --limb left_forearm [--split val]
+    python docs/experiments/diagnose_limb_uncertainty.py \\
+        --model assets/models/hkpd_hierarchical.pt --poses poses.npz --limb left_forearm \\
+        [--split val]
 """
 
 from __future__ import annotations

@@ -8,7 +8,8 @@ the visible keypoints (least squares), and reports that floor next to the networ
 error (read upright, as ``hkpd-eval --upright-reading`` does), per kind of view: no torso in the
 heatmaps, body axis more than 40° out of the picture (steep), the rest. Model card, section 5.
 
-    python docs/weak_perspective_floor.py assets/models/hkpd_hierarchical.pt --poses poses.npz
+    python docs/experiments/weak_perspective_floor.py assets/models/hkpd_hierarchical.pt \\
+        --poses poses.npz
 """
 
 from __future__ import annotations
