@@ -11,7 +11,7 @@ weak-perspective camera, and at its best perspective camera (the crop's focal le
     python docs/experiments/any_orientation_breakdown.py assets/models/hkpd_hierarchical.pt \\
         --poses poses.npz --count 1000
 
-Results: model card, section 5 ("Where the any-orientation error is").
+Results: docs/model_history.md, section 5 ("Where the any-orientation error is").
 """
 
 from __future__ import annotations

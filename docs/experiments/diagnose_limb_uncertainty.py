@@ -1,4 +1,5 @@
-"""Why does covering a limb raise its uncertainty so little? Print the model card's diagnosis.
+"""Why does covering a limb raise its uncertainty so little? Print docs/model_history.md's
+diagnosis (section 3).
 
 For synthetic test images with one limb covered (the occlusion-response protocol of
 ``hkpd-eval``), two tables, clean vs covered:

@@ -16,7 +16,7 @@ and the pose coverage of each (25 samples per example).
     python docs/experiments/mirror_reading_evidence.py assets/models/hkpd_hierarchical.pt \\
         --poses poses.npz --count 1000
 
-Results: model card, section 5 ("Mirror reading").
+Results: docs/model_history.md, section 5 ("Mirror reading").
 """
 
 from __future__ import annotations

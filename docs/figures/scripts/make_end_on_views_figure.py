@@ -5,7 +5,7 @@ Four views of the fixed any-orientation synthetic test split whose true torso po
 network reads, the true keypoints (white), the network's most likely body as the predictor reads
 it (red; upright copy, mirror reading) and the *true* body through its best weak-perspective
 camera (blue): even that misses, since a weak-perspective camera draws near and far parts of the
-body at one scale. Model card, section 5 ("Where the any-orientation error is").
+body at one scale. docs/model_history.md, section 5 ("Where the any-orientation error is").
 
     python docs/figures/scripts/make_end_on_views_figure.py assets/models/hkpd_hierarchical.pt \\
         --poses poses.npz
