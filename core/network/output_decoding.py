@@ -97,7 +97,7 @@ class _InwardClamp(torch.autograd.Function):
     A plain clamp has zero gradient beyond its bounds, so a log-gain that one large step threw
     past ``-MAX_LOG_GAIN`` can never come back: the joint's concentration stays at ``exp(-6)``
     of its raw value for good (the orientation fine-tunes lost both elbows, both hands and the
-    right collar this way; docs/model_card.md, section 5). Here the gradient still passes when a
+    right collar this way; docs/model_history.md, section 5). Here the gradient still passes when a
     descent step would move the value back towards the range; the forward value is unchanged.
     """
 

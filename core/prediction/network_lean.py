@@ -11,7 +11,7 @@ So such a view is read as it is, at every lean of :data:`LEAN_CANDIDATES_DEGREES
 of its own reading (:func:`mode_torso_tilts`), each reading is mapped back to the crop, and the
 one whose most likely body projects closest to the shown keypoints wins
 (:func:`mode_keypoint_misfits`): 16.0 px on those views with the shipped network, as good as
-turning by the true lean (16.1 px; ``docs/torsoless_lean_search.py``).
+turning by the true lean (16.1 px; ``docs/experiments/torsoless_lean_search.py``).
 """
 
 from __future__ import annotations

@@ -5,13 +5,13 @@ Reads the fixed synthetic test splits (upright and any orientation) as the predi
 torso (hips' midpoint to shoulders' midpoint) points out of the picture: seen from the front or
 side (0-20°), at a slant (20-45°), or nearly end-on, from high above or below (45-90°). For each
 group it prints the network's mean 2D mode error (px at 256) and the two floors of
-``docs/mirror_and_perspective_readings.py``: the *true* body at its best weak-perspective camera,
-and at its best perspective camera (the crop's focal length known).
+``docs/experiments/mirror_and_perspective_readings.py``: the *true* body at its best
+weak-perspective camera, and at its best perspective camera (the crop's focal length known).
 
-    python docs/any_orientation_breakdown.py assets/models/hkpd_hierarchical.pt \\
+    python docs/experiments/any_orientation_breakdown.py assets/models/hkpd_hierarchical.pt \\
         --poses poses.npz --count 1000
 
-Results: model card, section 5 ("Where the any-orientation error is").
+Results: docs/model_history.md, section 5 ("Where the any-orientation error is").
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ rows (network only; conditioned on the 2D keypoints) and four panels each: the p
 detected keypoints, the reprojected mode and 10 samples; the mode coloured by per-vertex
 uncertainty; the same two with a box over the right shin (its keypoints are then not evidence).
 
-    python docs/make_evidence_figure.py ../shared/data/demo_photos/yogait_war0.jpg \
+    python docs/figures/scripts/make_evidence_figure.py ../shared/data/demo_photos/yogait_war0.jpg \
         --box 640 470 760 640
 """
 
@@ -28,7 +28,7 @@ from hkpd.prediction.overview import (
 )
 from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
 
-FIGURE = Path(__file__).parent / "figures" / "evidence_posterior.png"
+FIGURE = Path(__file__).resolve().parents[1] / "evidence_posterior.png"
 HEIGHT = 300
 
 

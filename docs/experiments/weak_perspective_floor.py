@@ -6,9 +6,11 @@ camera. For every view of ``hkpd-eval``'s fixed test sets (upright and any orien
 poses the *true* body with its true rotation, fits the best weak-perspective scale and shift to
 the visible keypoints (least squares), and reports that floor next to the network's own mode
 error (read upright, as ``hkpd-eval --upright-reading`` does), per kind of view: no torso in the
-heatmaps, body axis more than 40° out of the picture (steep), the rest. Model card, section 5.
+heatmaps, body axis more than 40° out of the picture (steep), the rest. docs/model_history.md,
+section 5.
 
-    python docs/weak_perspective_floor.py assets/models/hkpd_hierarchical.pt --poses poses.npz
+    python docs/experiments/weak_perspective_floor.py assets/models/hkpd_hierarchical.pt \\
+        --poses poses.npz
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 photos of one person (PVE-T-SC of the single image, the mean of means and the probabilistic
 combination; the combined shape std and T-pose vertex uncertainty) for a checkpoint.
 
-    python docs/make_multi_view_shape_figure.py --poses poses.npz --bodies 100
+    python docs/figures/scripts/make_multi_view_shape_figure.py --poses poses.npz --bodies 100
 
 The numbers are those of ``hkpd-eval CHECKPOINT --poses poses.npz --no-synthetic
 --multi-view-shape 100`` (same functions, seed and test poses); the figure also shows the five
@@ -39,7 +39,7 @@ from hkpd.synthesis.generator import (
     batch_seed,
 )
 
-FIGURE = Path(__file__).parent / "figures" / "multi_view_shape.png"
+FIGURE = Path(__file__).resolve().parents[1] / "multi_view_shape.png"
 VIEWS = 5
 
 

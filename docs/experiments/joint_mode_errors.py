@@ -5,9 +5,10 @@ body joint: the median angle between the predicted mode and the true relative ro
 (degrees), the median log10 of the summed singular values of ``F`` (the concentration), and the
 median raw log-gain where the network has one (beyond ±6 it is clamped: such a joint has been
 stuck there, see ``hkpd.training.revive_gains``). Left and right joints should look alike; the
-model card (section 5) used this table to find the stuck right collar.
+docs/model_history.md (section 5) used this table to find the stuck right collar.
 
-    python docs/joint_mode_errors.py assets/models/hkpd_hierarchical.pt other.pt --poses poses.npz
+    python docs/experiments/joint_mode_errors.py assets/models/hkpd_hierarchical.pt other.pt \\
+        --poses poses.npz
 """
 
 from __future__ import annotations

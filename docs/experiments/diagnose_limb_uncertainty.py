@@ -1,4 +1,5 @@
-"""Why does covering a limb raise its uncertainty so little? Print the model card's diagnosis.
+"""Why does covering a limb raise its uncertainty so little? Print docs/model_history.md's
+diagnosis (section 3).
 
 For synthetic test images with one limb covered (the occlusion-response protocol of
 ``hkpd-eval``), two tables, clean vs covered:
@@ -21,8 +22,9 @@ For synthetic test images with one limb covered (the occlusion-response protocol
    (F -> factor * F, a grid from 0.1 to 2), and the uncertainty ratio when both views use their
    own fitted factors. A diagnosis fitted on the images it reports, not a recipe.
 
-    python docs/diagnose_limb_uncertainty.py --model assets/models/hkpd_hierarchical.pt \\
-        --poses poses.npz --limb left_forearm [--split val]
+    python docs/experiments/diagnose_limb_uncertainty.py \\
+        --model assets/models/hkpd_hierarchical.pt --poses poses.npz --limb left_forearm \\
+        [--split val]
 """
 
 from __future__ import annotations

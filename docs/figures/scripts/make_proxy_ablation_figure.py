@@ -10,7 +10,8 @@ masks as the silhouettes): the synthetic-to-real gap per proxy. The printed tabl
 each network with its image channels blanked (heatmaps only), which says how much it reads
 its image proxy in each domain.
 
-    python docs/make_proxy_ablation_figure.py --poses poses.npz --coco ../shared/data/coco_mini
+    python docs/figures/scripts/make_proxy_ablation_figure.py --poses poses.npz \\
+        --coco ../shared/data/coco_mini
 """
 
 from __future__ import annotations
@@ -41,8 +42,8 @@ from hkpd.synthesis.generator import (
     iter_fixed_test_set,
 )
 
-FIGURE = Path(__file__).parent / "figures" / "proxy_ablation.png"
-MODELS = Path(__file__).resolve().parents[1] / "assets" / "models" / "ablation"
+FIGURE = Path(__file__).resolve().parents[1] / "proxy_ablation.png"
+MODELS = Path(__file__).resolve().parents[3] / "assets" / "models" / "ablation"
 PROXIES = {"silhouette": "silhouette", "rgb": "RGB", "edges": "edges"}
 """Image proxy -> label, in the paper's row order."""
 EXAMPLE_SEED, EXAMPLE_INDEX = 2021, 3

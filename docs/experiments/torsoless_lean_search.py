@@ -10,9 +10,10 @@ body projects closest to the observed heatmap peaks (mean pixel distance over th
 keypoints; no ground truth is used to choose). It prints the mean 2D mode error (px at 256) of:
 today's reading, the reading turned by the true lean, the best of the twelve in hindsight, and
 the one chosen by fit. The upright reading and the predictor now choose so
-(:mod:`hkpd.prediction.network_lean`; model card, section 5).
+(:mod:`hkpd.prediction.network_lean`; docs/model_history.md, section 5).
 
-    python docs/torsoless_lean_search.py assets/models/hkpd_hierarchical.pt --poses poses.npz
+    python docs/experiments/torsoless_lean_search.py assets/models/hkpd_hierarchical.pt \\
+        --poses poses.npz
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ the network's own posterior (``evidence=False``): ``upright=False`` and the defa
 ``upright=True``, each with the detected keypoints, the reprojected mode and 10 samples, and
 the mode's mean 2D distance from the detected keypoints.
 
-    python docs/make_upright_reading_figure.py
+    python docs/figures/scripts/make_upright_reading_figure.py
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.prediction import Predictor
 from hkpd.prediction.overview import BACKGROUND, TEXT, _font, draw_skeletons
 
-FIGURE = Path(__file__).parent / "figures" / "upright_reading.png"
+FIGURE = Path(__file__).resolve().parents[1] / "upright_reading.png"
 SIZE = 360
 
 

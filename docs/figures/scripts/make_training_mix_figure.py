@@ -1,7 +1,7 @@
 """Render ``docs/figures/training_mix.png``: a grid of synthetic training crops with the new
 data mix (pose families, limb mixes, rolled and steep views, detector-like keypoint noise).
 
-    python docs/make_training_mix_figure.py --poses poses.npz
+    python docs/figures/scripts/make_training_mix_figure.py --poses poses.npz
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from hkpd.poses import pose_source
 from hkpd.synthesis.generator import SyntheticDataGenerator
 from hkpd.training.config import TrainConfig
 
-FIGURE = Path(__file__).parent / "figures" / "training_mix.png"
+FIGURE = Path(__file__).resolve().parents[1] / "training_mix.png"
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
 """Render the pictures of the body model in docs/figures (run after building the asset).
 
-Usage: python docs/make_body_figures.py
+Usage: python docs/figures/scripts/make_body_figures.py
 
 A small painter's-algorithm renderer (flat Lambert shading, OpenCV polygon fill) is enough for
 documentation pictures; training uses the batched renderer in the library instead.
@@ -17,7 +17,7 @@ import torch
 
 from hkpd.body import BodyModel
 
-OUT = Path(__file__).resolve().parent / "figures"
+OUT = Path(__file__).resolve().parents[1]
 SKIN = np.array([0.80, 0.68, 0.60])
 
 

@@ -5,7 +5,7 @@ shipped body in a walking pose, rasterised and shaded by hkpd, so it can be comm
 pipeline runs on it: BlazePose, crop, proxy, the network given with ``--model``, samples,
 uncertainty, overview.
 
-    python docs/make_predict_overview.py --model runs/hkpd/last.pt
+    python docs/figures/scripts/make_predict_overview.py --model runs/hkpd/last.pt
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from PIL import Image
 from hkpd.explorer.demo_scene import render_demo_scene
 from hkpd.prediction import cli
 
-FIGURE = Path(__file__).parent / "figures" / "predict_overview.png"
+FIGURE = Path(__file__).resolve().parents[1] / "predict_overview.png"
 
 
 def main() -> None:

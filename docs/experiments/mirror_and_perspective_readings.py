@@ -22,10 +22,11 @@ On the fixed synthetic test splits (upright and any orientation, read upright as
    principal point at the crop centre), and the floor of each camera model: the *true* body with
    its best camera of that model (L-BFGS on the visible keypoints).
 
-    python docs/mirror_and_perspective_readings.py assets/models/hkpd_hierarchical.pt \\
+    python docs/experiments/mirror_and_perspective_readings.py assets/models/hkpd_hierarchical.pt \\
         --poses poses.npz --count 1000
 
-Results and what they mean: model card, section 5 ("Readings that need no retraining").
+Results and what they mean: docs/model_history.md, section 5 ("Readings that need no
+retraining").
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 mirroring example docs/figures/poses_mirror.png and the procedural prior samples
 docs/figures/poses_procedural.png.
 
-Usage: python docs/make_poses_figures.py [CMU_MOCAP_DIR]   (default /work/shared/data/cmu_mocap)
+Usage: python docs/figures/scripts/make_poses_figures.py [CMU_MOCAP_DIR]
+(default /work/shared/data/cmu_mocap)
 
 Each retargeting picture shows, for a few frames of one clip, the source BVH skeleton as a stick
 figure (left) next to the SMPL body posed with the retargeted rotations (right), from the front
@@ -28,7 +29,7 @@ from hkpd.poses.bvh_kinematics import forward_kinematics, local_rotations
 from hkpd.poses.retargeting import retarget
 from hkpd.poses.skeleton_flavours import detect_flavour
 
-OUT = Path(__file__).resolve().parent / "figures"
+OUT = Path(__file__).resolve().parents[1]
 SIZE = 300
 CLIPS = {
     "daz": ("daz_bvh_Przestr/02_01.bvh", "daz_bvh_scaled_salsa_beemsoft/60_01_scaled.bvh"),

@@ -13,10 +13,10 @@ On the fixed upright synthetic test split with BlazePose-like keypoint noise on 
 and the script prints the mean 2D mode error (px at 256), MPJPE-PA (mm), the samples' 2D error
 and the pose coverage of each (25 samples per example).
 
-    python docs/mirror_reading_evidence.py assets/models/hkpd_hierarchical.pt \\
+    python docs/experiments/mirror_reading_evidence.py assets/models/hkpd_hierarchical.pt \\
         --poses poses.npz --count 1000
 
-Results: model card, section 5 ("Mirror reading").
+Results: docs/model_history.md, section 5 ("Mirror reading").
 """
 
 from __future__ import annotations

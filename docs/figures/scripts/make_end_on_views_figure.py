@@ -5,20 +5,24 @@ Four views of the fixed any-orientation synthetic test split whose true torso po
 network reads, the true keypoints (white), the network's most likely body as the predictor reads
 it (red; upright copy, mirror reading) and the *true* body through its best weak-perspective
 camera (blue): even that misses, since a weak-perspective camera draws near and far parts of the
-body at one scale. Model card, section 5 ("Where the any-orientation error is").
+body at one scale. docs/model_history.md, section 5 ("Where the any-orientation error is").
 
-    python docs/make_end_on_views_figure.py assets/models/hkpd_hierarchical.pt --poses poses.npz
+    python docs/figures/scripts/make_end_on_views_figure.py assets/models/hkpd_hierarchical.pt \\
+        --poses poses.npz
 """
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 import torch
+from PIL import Image, ImageDraw
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "experiments"))
 from experiment_arguments import parse_experiment_arguments
 from mirror_and_perspective_readings import best_camera
-from PIL import Image, ImageDraw
 
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
@@ -30,7 +34,7 @@ from hkpd.prediction.upright_reading import UprightReader
 from hkpd.synthesis.generator import iter_fixed_test_set
 from hkpd.synthesis.orientation import ANY_ORIENTATION
 
-FIGURE = Path(__file__).parent / "figures" / "end_on_views.png"
+FIGURE = Path(__file__).resolve().parents[1] / "end_on_views.png"
 PANEL = 300
 PANELS = 4
 END_ON_DEGREES = 60.0

@@ -1,7 +1,7 @@
-"""The command line shared by the synthetic-test-set experiment scripts in ``docs/``.
+"""The command line shared by the synthetic-test-set experiment scripts in ``docs/experiments/``.
 
 Each script reads one checkpoint on the fixed synthetic test set of a pose bank:
-``python docs/<script>.py CHECKPOINT [--poses poses.npz] [--count 1000]``.
+``python docs/experiments/<script>.py CHECKPOINT [--poses poses.npz] [--count 1000]``.
 """
 
 from __future__ import annotations

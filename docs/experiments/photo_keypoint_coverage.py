@@ -9,7 +9,7 @@ mode's and the detector's hips against the annotators', in the person's own fram
 of the torso's length, median over people): is there a convention gap between the body model's
 hip keypoints and COCO's?
 
-    python docs/photo_keypoint_coverage.py assets/models/hkpd_hierarchical.pt \\
+    python docs/experiments/photo_keypoint_coverage.py assets/models/hkpd_hierarchical.pt \\
         --coco ../shared/data/coco_mini --coco-split train2017
 """
 
