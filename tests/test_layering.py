@@ -130,7 +130,8 @@ def test_every_allowed_edge_is_used() -> None:
     for package, path in _source_files():
         used[package] |= {imported for _, imported, _ in _imports(path)} - {package}
     unused = {p: sorted(ALLOWED_IMPORTS[p] - used[p]) for p in ALLOWED_IMPORTS}
-    assert not any(unused.values()), f"remove from the table (and the docs): {unused}"
+    unused = {package: names for package, names in unused.items() if names}
+    assert not unused, f"remove from the table (and the docs): {unused}"
 
 
 def test_the_graph_has_no_cycle() -> None:
@@ -158,7 +159,12 @@ def test_the_architecture_table_lists_the_same_graph() -> None:
         cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
         if line.startswith("|") and re.fullmatch(r"`[\w.]+`", cells[0]):
             documented[cells[0].strip("`")] = frozenset(re.findall(r"`(\w+)`", cells[-1]))
-    assert documented == ALLOWED_IMPORTS
+    differing = {
+        name: (sorted(documented.get(name, ())), sorted(ALLOWED_IMPORTS.get(name, ())))
+        for name in documented.keys() | ALLOWED_IMPORTS.keys()
+        if documented.get(name) != ALLOWED_IMPORTS.get(name)
+    }
+    assert not differing, f"docs/architecture.md vs ALLOWED_IMPORTS (docs, test): {differing}"
 
 
 def test_function_level_imports_between_packages_only_in_entry_modules() -> None:
