@@ -507,9 +507,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         _predict_all(predict_into, list(zip(images, names, strict=True)), args.out, results)
         combined = None
         if args.same_person:
-            combined = _combined_or_reported(
-                args.out / combined_name, predictor, results, formats, scale
-            )
+            combined = _combine_into(args.out / combined_name, predictor, results, formats, scale)
     except KeyboardInterrupt:
         print(f"\n{PROG}: interrupted after {len(results)} of {len(images)} photos; the "
               "folders written so far are complete", file=sys.stderr)  # fmt: skip
@@ -580,22 +578,6 @@ def _predict_all(
             )
 
 
-def _combined_or_reported(
-    folder: Path,
-    predictor: Predictor,
-    results: Sequence[PhotoResult],
-    formats: Sequence[str],
-    scale: UncertaintyColourScale,
-) -> str:
-    """:func:`_combine_into`'s line, or the failure's (also printed to stderr)."""
-    try:
-        return _combine_into(folder, predictor, results, formats, scale)
-    except (ValueError, OSError) as error:
-        combined = f"combined shape FAILED: {_one_line(error)}"
-        print(f"{PROG}: {combined}", file=sys.stderr)
-        return combined
-
-
 def _final_report(out: Path, results: Sequence[PhotoResult], combined: str | None) -> int:
     """Print the closing line; the exit status (1 when a photo or the combined shape failed)."""
     failed = [result for result in results if result.error is not None]
@@ -656,20 +638,25 @@ def _combine_into(
     scale: UncertaintyColourScale,
 ) -> str:
     """Write the shape combined from the photos that succeeded into ``folder`` (atomically)
-    and say what was written, for the final line."""
+    and say what was written, for the final line (a failure is also printed to stderr)."""
     done = [result for result in results if result.error is None and result.shape_mean is not None]
     if not done:
         return "no combined shape (no photo succeeded)"
     means = torch.stack([result.shape_mean for result in done])
     stds = torch.stack([result.shape_std for result in done])
-    combined = combine_shape_tensors(means, stds, predictor.body, "product")
-    baseline = combine_shape_tensors(means, stds, predictor.body, "mean")
-    files = _written_atomically(
-        folder,
-        lambda partial: write_combined_shape(
-            partial, combined, baseline, [r.image for r in done], means, stds, formats, scale
-        ),
-    )
+    try:
+        combined = combine_shape_tensors(means, stds, predictor.body, "product")
+        baseline = combine_shape_tensors(means, stds, predictor.body, "mean")
+        files = _written_atomically(
+            folder,
+            lambda partial: write_combined_shape(
+                partial, combined, baseline, [r.image for r in done], means, stds, formats, scale
+            ),
+        )
+    except (ValueError, OSError) as error:
+        failure = f"combined shape FAILED: {_one_line(error)}"
+        print(f"{PROG}: {failure}", file=sys.stderr)
+        return failure
     return (
         f"combined shape of {len(done)} photo(s) (mean std {combined.mean_std:.3f}, one photo "
         f"{float(stds.mean()):.3f}): {len(files)} files in {folder}"

@@ -130,6 +130,22 @@ def rasterize(
 
 
 @dataclass(frozen=True)
+class _ProjectedFaces:
+    """A chunk's faces on screen.
+
+    Attributes:
+        xs, ys: per corner, ``(b, F)`` projected pixel coordinates.
+        vertex_z: ``(b, V)`` camera-frame depths of the vertices.
+        area: ``(b, F)`` twice the signed screen area (positive: facing the camera).
+    """
+
+    xs: list[torch.Tensor]
+    ys: list[torch.Tensor]
+    vertex_z: torch.Tensor
+    area: torch.Tensor
+
+
+@dataclass(frozen=True)
 class _FaceBoxes:
     """The drawable faces of a chunk, sorted by the size group of their boxes.
 
@@ -221,28 +237,17 @@ class ChunkRasterizer:
         xs = [pixel_x.index_select(1, corner) for corner in self.corners]
         ys = [pixel_y.index_select(1, corner) for corner in self.corners]
         area = (xs[2] - xs[0]) * (ys[1] - ys[0]) - (xs[1] - xs[0]) * (ys[2] - ys[0])
-        boxes = self._face_boxes(xs, ys, vertex_z, area)
-        coefficients = self._pixel_functions(xs, ys, vertex_z, area, boxes)
+        faces = _ProjectedFaces(xs, ys, vertex_z, area)
+        boxes = self._face_boxes(faces)
+        coefficients = self._pixel_functions(faces, boxes)
         buffer = self._nearest_keys(coefficients, boxes, batch, vertices.device)
         words = buffer[: batch * size * size].view(torch.int32).view(batch, size, size, 2)
         torch.sub(words[..., 0], 1, out=face_index_out)
         torch.reciprocal(words[..., 1].view(torch.float32), out=depth_out)
 
-    def _face_boxes(
-        self,
-        xs: list[torch.Tensor],
-        ys: list[torch.Tensor],
-        vertex_z: torch.Tensor,
-        area: torch.Tensor,
-    ) -> _FaceBoxes:
-        """Method steps 1-2: the drawable faces' boxes of pixel centres, sorted by size group.
-
-        Args:
-            xs, ys: per corner, ``(b, F)`` projected pixel coordinates.
-            vertex_z: ``(b, V)`` camera-frame depths.
-            area: ``(b, F)`` twice the signed screen area (positive: facing the camera).
-        """
-        size = self.size
+    def _face_boxes(self, faces: _ProjectedFaces) -> _FaceBoxes:
+        """Method steps 1-2: the drawable faces' boxes of pixel centres, sorted by size group."""
+        size, xs, ys, vertex_z, area = self.size, faces.xs, faces.ys, faces.vertex_z, faces.area
         drawable = area > 0 if self.cull_backfaces else area != 0
         low_x = torch.minimum(torch.minimum(xs[0], xs[1]), xs[2]).ceil_()
         high_x = torch.maximum(torch.maximum(xs[0], xs[1]), xs[2]).floor_()
@@ -273,17 +278,11 @@ class ChunkRasterizer:
             counts=torch.bincount(group, minlength=len(self.shapes)).tolist(),
         )
 
-    def _pixel_functions(
-        self,
-        xs: list[torch.Tensor],
-        ys: list[torch.Tensor],
-        vertex_z: torch.Tensor,
-        area: torch.Tensor,
-        boxes: _FaceBoxes,
-    ) -> torch.Tensor:
+    def _pixel_functions(self, faces: _ProjectedFaces, boxes: _FaceBoxes) -> torch.Tensor:
         """Method step 3: ``(6, n, 3)`` the affine functions of the pixel offset inside each
         box: three barycentrics, two image-border guards and the inverse depth."""
         size, selected, low_x, low_y = self.size, boxes.selected, boxes.low_x, boxes.low_y
+        xs, ys, vertex_z, area = faces.xs, faces.ys, faces.vertex_z, faces.area
         # Corner coordinates local to the box, and their inverse depths: (3 corners, n).
         corner_x = torch.stack([c.view(-1).index_select(0, selected) for c in xs]) - low_x
         corner_y = torch.stack([c.view(-1).index_select(0, selected) for c in ys]) - low_y
