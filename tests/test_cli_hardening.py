@@ -13,9 +13,9 @@ import torch
 from hkpd.evaluation.cli import main as eval_main
 from hkpd.network import DistributionNetwork
 from hkpd.network import checkpoint as checkpoints
+from hkpd.network.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 from hkpd.network.config import NetworkConfig
 from hkpd.poses.cli import main as poses_main
-from hkpd.training.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 from hkpd.training.cli import main as train_main
 from hkpd.training.config import TrainConfig
 from hkpd.training.loop import train

@@ -7,8 +7,8 @@ import pytest
 import torch
 
 from hkpd.network import DistributionNetwork, NetworkConfig
+from hkpd.network.checkpoint import load_initial_weights, load_network, save_checkpoint
 from hkpd.network.output_decoding import MAX_LOG_GAIN, decode_pose
-from hkpd.training.checkpoint import load_initial_weights, load_network, save_checkpoint
 
 TINY = {"backbone_base_width": 8, "head_hidden": 32, "joint_hidden": (16,), "image_size": 64}
 

@@ -12,8 +12,8 @@ import torch
 from hkpd.evaluation.cli import main as eval_main
 from hkpd.evaluation.real_photos import load_coco_people
 from hkpd.network import DistributionNetwork
+from hkpd.network.checkpoint import save_checkpoint
 from hkpd.network.config import NetworkConfig
-from hkpd.training.checkpoint import save_checkpoint
 
 
 def tiny_checkpoint(tmp_path):

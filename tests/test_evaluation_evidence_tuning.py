@@ -12,7 +12,7 @@ from hkpd.conditioning import EvidenceConfig
 from hkpd.evaluation.evidence_tuning import main as tune_main
 from hkpd.evaluation.evidence_tuning import parse_setting
 from hkpd.network import DistributionNetwork, NetworkConfig
-from hkpd.training.checkpoint import save_checkpoint
+from hkpd.network.checkpoint import save_checkpoint
 
 SHIPPED_PHOTO = Path(__file__).parents[1] / "assets" / "photos" / "warrior_lunge.jpg"
 

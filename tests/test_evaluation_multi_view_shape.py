@@ -13,10 +13,10 @@ from hkpd.evaluation.multi_view_shape import (
     predict_multi_view_shapes,
 )
 from hkpd.network import DistributionNetwork
+from hkpd.network.checkpoint import save_checkpoint
 from hkpd.network.config import NetworkConfig
 from hkpd.poses import ProceduralPosePrior
 from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
-from hkpd.training.checkpoint import save_checkpoint
 
 
 class RecordingNetwork(torch.nn.Module):

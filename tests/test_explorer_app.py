@@ -320,8 +320,8 @@ def test_a_silhouette_model_is_refused_at_start(tmp_path) -> None:
 
     from hkpd.explorer.provider import PredictorProvider
     from hkpd.network import DistributionNetwork
+    from hkpd.network.checkpoint import save_checkpoint
     from hkpd.network.config import NetworkConfig
-    from hkpd.training.checkpoint import save_checkpoint
 
     config = NetworkConfig(backbone_base_width=8, image_size=64, image_proxy="silhouette")
     torch.manual_seed(0)

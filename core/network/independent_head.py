@@ -21,6 +21,16 @@ def init_output_layer(layer: nn.Module, bias: torch.Tensor | None = None) -> Non
             layer.bias.copy_(torch.zeros_like(layer.bias) if bias is None else bias)
 
 
+def globals_output_layer(
+    hidden: int, num_betas: int, initial_shape_std: float, initial_camera_scale: float
+) -> nn.Linear:
+    """The final layer of the global outputs (shape mean and std, global rotation, camera;
+    :func:`hkpd.network.output_decoding.decode_globals`), started at the decoding biases."""
+    layer = nn.Linear(hidden, global_size(num_betas))
+    init_output_layer(layer, global_bias(num_betas, initial_shape_std, initial_camera_scale))
+    return layer
+
+
 def zero_layer(layer: nn.Module) -> None:
     """Set a layer's weights and bias to zero (a new output that starts as a no-op)."""
     for parameter in layer.parameters():
@@ -65,11 +75,10 @@ class IndependentHead(nn.Module):
             nn.Linear(hidden, hidden),
             nn.ReLU(inplace=True),
         )
-        self.globals_out = nn.Linear(hidden, global_size(num_betas))
-        self.pose_out = nn.Linear(hidden, num_joints * 9)
-        init_output_layer(
-            self.globals_out, global_bias(num_betas, initial_shape_std, initial_camera_scale)
+        self.globals_out = globals_output_layer(
+            hidden, num_betas, initial_shape_std, initial_camera_scale
         )
+        self.pose_out = nn.Linear(hidden, num_joints * 9)
         init_output_layer(self.pose_out)
         self.log_gain_out = nn.Linear(hidden, num_joints) if concentration_gain else None
         if self.log_gain_out is not None:

@@ -119,7 +119,49 @@ def build_pose_bank(
     """
     files = find_bvh_files(directories)
     summary = BuildSummary()
-    clips: list[tuple[str, int, torch.Tensor, torch.Tensor, torch.Tensor, int]] = []
+    clips = _retargeted_clips(files, min_change_deg, summary, progress)
+    if summary.skipped:
+        listing = "\n".join(f"  {p}: {reason}" for p, reason in summary.skipped)
+        warnings.warn(f"skipped {len(summary.skipped)} BVH file(s):\n{listing}", stacklevel=2)
+    if not clips:
+        raise ValueError(f"none of the {len(files)} BVH files could be used (see warnings)")
+
+    splits = assign_splits([clip.subject for clip in clips], val_fraction, test_fraction)
+    names = tuple(dict.fromkeys(clip.name for clip in clips))
+    columns = _bank_columns(clips, names, splits, mirror, summary)
+    for split in SPLIT_NAMES:
+        summary.subjects[split] = sorted(s for s, name in splits.items() if name == split)
+    bank = PoseBank(
+        **{k: np.concatenate(v) for k, v in columns.items()},
+        clip_names=names,
+    )
+    return bank, summary
+
+
+@dataclass(frozen=True)
+class _Clip:
+    """One retargeted BVH file's kept frames.
+
+    Attributes:
+        name: the file stem; subject: its CMU subject.
+        body_pose: ``(N, 23, 3, 3)``; global_orient: ``(N, 3, 3)``.
+        frames: ``(N,)`` long, each kept frame's index in the file.
+        num_frames: frames of the clip after dropping the T-pose frame.
+    """
+
+    name: str
+    subject: int
+    body_pose: torch.Tensor
+    global_orient: torch.Tensor
+    frames: torch.Tensor
+    num_frames: int
+
+
+def _retargeted_clips(
+    files: Sequence[Path], min_change_deg: float, summary: BuildSummary, progress: bool
+) -> list[_Clip]:
+    """Parse, retarget and thin every file; files that fail are listed in ``summary``."""
+    clips: list[_Clip] = []
     for path in tqdm(files, desc="retargeting BVH", unit="file", disable=not progress):
         try:
             subject = subject_of(path.stem)
@@ -131,7 +173,7 @@ def build_pose_bank(
         kept = select_distinct_frames(clip.body_pose, min_change_deg)
         first_frame = 1 if motion.num_frames > clip.num_frames else 0
         clips.append(
-            (
+            _Clip(
                 path.stem,
                 subject,
                 clip.body_pose[kept],
@@ -142,38 +184,36 @@ def build_pose_bank(
         )
         summary.files.append(path)
         summary.flavours[clip.flavour] = summary.flavours.get(clip.flavour, 0) + 1
-    if summary.skipped:
-        listing = "\n".join(f"  {p}: {reason}" for p, reason in summary.skipped)
-        warnings.warn(f"skipped {len(summary.skipped)} BVH file(s):\n{listing}", stacklevel=2)
-    if not clips:
-        raise ValueError(f"none of the {len(files)} BVH files could be used (see warnings)")
+    return clips
 
-    splits = assign_splits([c[1] for c in clips], val_fraction, test_fraction)
-    names = tuple(dict.fromkeys(c[0] for c in clips))
+
+def _bank_columns(
+    clips: Sequence[_Clip],
+    names: tuple[str, ...],
+    splits: dict[int, str],
+    mirror: bool,
+    summary: BuildSummary,
+) -> dict[str, list[np.ndarray]]:
+    """The bank's columns, a list of arrays per :class:`PoseBank` field (each clip, then its
+    mirror image when ``mirror``); counts frames, poses and clips per split in ``summary``."""
     keys = ("body_pose", "global_orient", "subject", "clip", "frame", "mirrored", "split")
     columns: dict[str, list[np.ndarray]] = {k: [] for k in keys}
-    for name, subject, body_pose, global_orient, frames, num_frames in clips:
-        split = splits[subject]
-        copies = [(body_pose, global_orient, False)]
+    for clip in clips:
+        split = splits[clip.subject]
+        copies = [(clip.body_pose, clip.global_orient, False)]
         if mirror:
-            copies.append((*mirror_pose(body_pose, global_orient), True))
+            copies.append((*mirror_pose(clip.body_pose, clip.global_orient), True))
         for pose, orient, is_mirror in copies:
             count = len(pose)
             columns["body_pose"].append(roma.rotmat_to_rotvec(pose).float().numpy())
             columns["global_orient"].append(roma.rotmat_to_rotvec(orient).float().numpy())
-            columns["subject"].append(np.full(count, subject, np.int32))
-            columns["clip"].append(np.full(count, names.index(name), np.int32))
-            columns["frame"].append(frames.numpy().astype(np.int32))
+            columns["subject"].append(np.full(count, clip.subject, np.int32))
+            columns["clip"].append(np.full(count, names.index(clip.name), np.int32))
+            columns["frame"].append(clip.frames.numpy().astype(np.int32))
             columns["mirrored"].append(np.full(count, is_mirror))
             columns["split"].append(np.full(count, SPLIT_NAMES.index(split), np.int8))
             summary.poses[split] += count
-        summary.frames[split] += num_frames
-        summary.kept[split] += len(body_pose)
+        summary.frames[split] += clip.num_frames
+        summary.kept[split] += len(clip.body_pose)
         summary.clips[split] += 1
-    for split in SPLIT_NAMES:
-        summary.subjects[split] = sorted(s for s, name in splits.items() if name == split)
-    bank = PoseBank(
-        **{k: np.concatenate(v) for k, v in columns.items()},
-        clip_names=names,
-    )
-    return bank, summary
+    return columns

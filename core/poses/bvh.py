@@ -119,90 +119,115 @@ def parse_bvh(text: str, name: str = "") -> BvhMotion:
 
 
 def _parse_hierarchy(tokens: list[str]) -> BvhSkeleton:
+    """The skeleton of the ``HIERARCHY`` section, given as whitespace-separated tokens."""
     if not tokens or tokens[0] != "HIERARCHY":
         raise BvhParseError("file does not start with HIERARCHY")
-    names: list[str] = []
-    parents: list[int] = []
-    offsets: list[list[float]] = []
-    channels: list[tuple[str, ...]] = []
-    end_site: list[bool] = []
-    stack: list[int] = []  # joints whose '{' is open
-    pending: int | None = None  # joint declared, waiting for its '{'
-    position = 1
+    return _HierarchyReader(tokens).read()
 
-    def take() -> str:
-        nonlocal position
-        if position >= len(tokens):
+
+class _HierarchyReader:
+    """Reads the tokens after ``HIERARCHY`` one statement at a time, joints in file order."""
+
+    def __init__(self, tokens: list[str]) -> None:
+        self.tokens = tokens
+        self.position = 1
+        self.names: list[str] = []
+        self.parents: list[int] = []
+        self.offsets: list[list[float]] = []
+        self.channels: list[tuple[str, ...]] = []
+        self.end_site: list[bool] = []
+        self.stack: list[int] = []  # joints whose '{' is open
+        self.pending: int | None = None  # joint declared, waiting for its '{'
+
+    def take(self) -> str:
+        if self.position >= len(self.tokens):
             raise BvhParseError("hierarchy ends unexpectedly")
-        token = tokens[position]
-        position += 1
+        token = self.tokens[self.position]
+        self.position += 1
         return token
 
-    while position < len(tokens):
-        token = take()
-        if token in ("ROOT", "JOINT"):
-            if token == "ROOT" and (names or stack):
-                raise BvhParseError("only one ROOT is supported")
-            if token == "JOINT" and not stack:
-                raise BvhParseError("JOINT outside of the ROOT block")
-            joint_name = take()
-            parents.append(stack[-1] if stack else -1)
-            names.append(joint_name)
-            offsets.append([0.0, 0.0, 0.0])
-            channels.append(())
-            end_site.append(False)
-            pending = len(names) - 1
-        elif token == "End":
-            if take() != "Site" or not stack:
-                raise BvhParseError("malformed End Site")
-            parent = stack[-1]
-            parents.append(parent)
-            names.append(f"{names[parent]}_end")
-            offsets.append([0.0, 0.0, 0.0])
-            channels.append(())
-            end_site.append(True)
-            pending = len(names) - 1
-        elif token == "{":
-            if pending is None:
-                raise BvhParseError("'{' without a joint")
-            stack.append(pending)
-            pending = None
-        elif token == "}":
-            if not stack:
-                raise BvhParseError("unbalanced '}'")
-            stack.pop()
-        elif token == "OFFSET":
-            if not stack:
-                raise BvhParseError("OFFSET outside a joint")
-            try:
-                offsets[stack[-1]] = [float(take()) for _ in range(3)]
-            except ValueError as error:
-                raise BvhParseError(f"bad OFFSET of {names[stack[-1]]!r}: {error}") from None
-        elif token == "CHANNELS":
-            if not stack or end_site[stack[-1]]:
-                raise BvhParseError("CHANNELS outside a joint")
-            try:
-                count = int(take())
-            except ValueError:
-                raise BvhParseError(f"bad channel count for {names[stack[-1]]!r}") from None
-            joint_channels = tuple(take() for _ in range(count))
-            unknown = [c for c in joint_channels if c not in _KNOWN_CHANNELS]
-            if unknown:
-                raise BvhParseError(f"unknown channel(s) {unknown} in joint {names[stack[-1]]!r}")
-            channels[stack[-1]] = joint_channels
-        else:
-            raise BvhParseError(f"unexpected token {token!r} in HIERARCHY")
-    if stack or pending is not None:
-        raise BvhParseError("hierarchy has unclosed '{'")
-    if not names:
-        raise BvhParseError("hierarchy has no joints")
-    return BvhSkeleton(
-        names=tuple(names),
-        parents=tuple(parents),
-        offsets=np.asarray(offsets, dtype=np.float64),
-        channels=tuple(channels),
-        is_end_site=np.asarray(end_site, dtype=bool),
-    )
+    def read(self) -> BvhSkeleton:
+        statements = {
+            "ROOT": self._joint,
+            "JOINT": self._joint,
+            "End": self._end_site,
+            "{": self._open,
+            "}": self._close,
+            "OFFSET": self._offset,
+            "CHANNELS": self._channels,
+        }
+        while self.position < len(self.tokens):
+            token = self.take()
+            if token not in statements:
+                raise BvhParseError(f"unexpected token {token!r} in HIERARCHY")
+            statements[token](token)
+        if self.stack or self.pending is not None:
+            raise BvhParseError("hierarchy has unclosed '{'")
+        if not self.names:
+            raise BvhParseError("hierarchy has no joints")
+        return BvhSkeleton(
+            names=tuple(self.names),
+            parents=tuple(self.parents),
+            offsets=np.asarray(self.offsets, dtype=np.float64),
+            channels=tuple(self.channels),
+            is_end_site=np.asarray(self.end_site, dtype=bool),
+        )
+
+    def _add(self, name: str, parent: int, is_end_site: bool) -> None:
+        self.parents.append(parent)
+        self.names.append(name)
+        self.offsets.append([0.0, 0.0, 0.0])
+        self.channels.append(())
+        self.end_site.append(is_end_site)
+        self.pending = len(self.names) - 1
+
+    def _joint(self, token: str) -> None:
+        if token == "ROOT" and (self.names or self.stack):
+            raise BvhParseError("only one ROOT is supported")
+        if token == "JOINT" and not self.stack:
+            raise BvhParseError("JOINT outside of the ROOT block")
+        joint_name = self.take()
+        self._add(joint_name, self.stack[-1] if self.stack else -1, False)
+
+    def _end_site(self, _token: str) -> None:
+        if self.take() != "Site" or not self.stack:
+            raise BvhParseError("malformed End Site")
+        parent = self.stack[-1]
+        self._add(f"{self.names[parent]}_end", parent, True)
+
+    def _open(self, _token: str) -> None:
+        if self.pending is None:
+            raise BvhParseError("'{' without a joint")
+        self.stack.append(self.pending)
+        self.pending = None
+
+    def _close(self, _token: str) -> None:
+        if not self.stack:
+            raise BvhParseError("unbalanced '}'")
+        self.stack.pop()
+
+    def _offset(self, _token: str) -> None:
+        if not self.stack:
+            raise BvhParseError("OFFSET outside a joint")
+        joint = self.stack[-1]
+        try:
+            self.offsets[joint] = [float(self.take()) for _ in range(3)]
+        except ValueError as error:
+            raise BvhParseError(f"bad OFFSET of {self.names[joint]!r}: {error}") from None
+
+    def _channels(self, _token: str) -> None:
+        if not self.stack or self.end_site[self.stack[-1]]:
+            raise BvhParseError("CHANNELS outside a joint")
+        joint = self.stack[-1]
+        try:
+            count = int(self.take())
+        except ValueError:
+            raise BvhParseError(f"bad channel count for {self.names[joint]!r}") from None
+        joint_channels = tuple(self.take() for _ in range(count))
+        unknown = [c for c in joint_channels if c not in _KNOWN_CHANNELS]
+        if unknown:
+            raise BvhParseError(f"unknown channel(s) {unknown} in joint {self.names[joint]!r}")
+        self.channels[joint] = joint_channels
 
 
 def _parse_motion(text: str, num_channels: int) -> tuple[np.ndarray, float]:

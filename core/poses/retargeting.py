@@ -24,6 +24,7 @@ from functools import cache
 import roma
 import torch
 
+from hkpd.body import BodyModel
 from hkpd.kinematic_tree import SMPL_JOINT_NAMES, SMPL_PARENTS
 from hkpd.poses.bvh import BvhMotion
 from hkpd.poses.bvh_kinematics import forward_kinematics, local_rotations
@@ -63,8 +64,6 @@ def smpl_rest_bone_directions() -> torch.Tensor:
     Returns:
         ``(24, 3)`` float64, SMPL axes; zero rows for leaf joints (head, feet, hands).
     """
-    from hkpd.body import BodyModel  # imported lazily: loading the asset takes a moment
-
     with torch.no_grad():
         body = BodyModel().double()
         joints = body.rest_joints(torch.zeros(1, body.num_betas, dtype=torch.float64))[0]

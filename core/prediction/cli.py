@@ -59,7 +59,7 @@ from hkpd.prediction.shape_combination import combine_shape_tensors
 from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
 
 if TYPE_CHECKING:
-    from hkpd.prediction.posterior import BodyPosterior
+    from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
     from hkpd.prediction.predictor import Predictor
 
 _Written = TypeVar("_Written")
@@ -260,8 +260,6 @@ def predict_photo(
     Raises:
         ImageInputError, NoPersonFoundError, ValueError, OSError: the photo failed.
     """
-    from hkpd.prediction.overview import make_overview
-
     started = time.perf_counter()
     timings: dict[str, float] = {}
     posterior = predictor.predict(image, bbox=bbox, evidence=evidence)
@@ -272,10 +270,63 @@ def predict_photo(
     uncertainty = posterior.vertex_uncertainty(n=uncertainty_samples, seed=seed)
     clock = _timed(timings, "uncertainty_s", clock)
 
-    faces = posterior.body.faces
     uncertainty_np = uncertainty.detach().cpu().double().numpy()
-    colours = scale.colours_uint8(uncertainty_np)
     folder.mkdir(parents=True, exist_ok=True)
+    written = _write_meshes(
+        folder, formats, mode, drawn, posterior.body.faces, scale.colours_uint8(uncertainty_np)
+    )
+    if ARRAY_FORMAT in formats:
+        arrays = distribution_arrays(posterior, mode, drawn, uncertainty)
+        written.append(write_distribution_npz(folder / "prediction.npz", arrays))
+    clock = _timed(timings, "export_s", clock)
+    caption = f"{samples} samples, model {Path(model_path).name}"
+    written.append(
+        _write_overview(
+            folder / "overview.png", posterior, mode, drawn, uncertainty_np, scale, caption
+        )
+    )
+    _timed(timings, "overview_s", clock)
+    timings["total_s"] = round(time.perf_counter() - started, 4)
+
+    summary_path = folder / "summary.json"
+    files = [path.relative_to(folder).as_posix() for path in written] + [summary_path.name]
+    summary = _photo_summary(
+        image, posterior, mode, uncertainty_np, uncertainty_samples, scale, evidence
+    )
+    summary.update(
+        {
+            "samples": samples,
+            "seed": seed,
+            "formats": list(formats),
+            "frames": DISPLAY_FRAME_NOTE,
+            "files": files,
+            "timings": timings,
+            "model": model_path,
+        }
+    )
+    write_json(summary_path, summary)
+    return PhotoResult(
+        image=image,
+        folder=folder,
+        files=files,
+        seconds=timings["total_s"],
+        person_box=tuple(float(v) for v in posterior.network_input.detection.person_box),
+        note=posterior.fallback_reason and f"network posterior ({posterior.fallback_reason})",
+        shape_mean=posterior.shape_mean.detach().cpu(),
+        shape_std=posterior.shape_std.detach().cpu(),
+    )
+
+
+def _write_meshes(
+    folder: Path,
+    formats: Sequence[str],
+    mode: BodyMeshes,
+    drawn: BodyMeshes | None,
+    faces: torch.Tensor,
+    colours: np.ndarray,
+) -> list[Path]:
+    """The mode, the mode coloured by ``(V, 3)`` uint8 ``colours`` and the samples, in every
+    mesh format of ``formats``; returns the files written."""
     written: list[Path] = []
     for fmt in formats:
         if fmt not in MESH_FORMATS:
@@ -288,14 +339,23 @@ def predict_photo(
             for index, vertices in enumerate(drawn.vertices):
                 path = folder / "samples" / f"sample_{index:03d}.{fmt}"
                 written.append(write_mesh(path, vertices, faces))
-    if ARRAY_FORMAT in formats:
-        arrays = distribution_arrays(posterior, mode, drawn, uncertainty)
-        written.append(write_distribution_npz(folder / "prediction.npz", arrays))
-    clock = _timed(timings, "export_s", clock)
+    return written
+
+
+def _write_overview(
+    path: Path,
+    posterior: BodyPosterior,
+    mode: BodyMeshes,
+    drawn: BodyMeshes | None,
+    uncertainty: np.ndarray,
+    scale: UncertaintyColourScale,
+    caption: str,
+) -> Path:
+    """Write the overview picture (:func:`hkpd.prediction.overview.make_overview`) to ``path``."""
+    from hkpd.prediction.overview import make_overview
 
     prepared = posterior.network_input
     detection = prepared.detection
-    caption = f"{samples} samples, model {Path(model_path).name}"
     overview = make_overview(
         prepared.image,
         posterior.crop,
@@ -304,21 +364,30 @@ def predict_photo(
         mode.keypoints2d[0].cpu().numpy(),
         None if drawn is None else drawn.keypoints2d.cpu().numpy(),
         mode.vertices[0],
-        faces,
-        uncertainty_np,
+        posterior.body.faces,
+        uncertainty,
         scale,
         caption=caption,
     )
-    overview_path = folder / "overview.png"
-    Image.fromarray(overview).save(overview_path)
-    written.append(overview_path)
-    _timed(timings, "overview_s", clock)
-    timings["total_s"] = round(time.perf_counter() - started, 4)
+    Image.fromarray(overview).save(path)
+    return path
 
-    summary_path = folder / "summary.json"
-    files = [path.relative_to(folder).as_posix() for path in written] + [summary_path.name]
+
+def _photo_summary(
+    image: Path,
+    posterior: BodyPosterior,
+    mode: BodyMeshes,
+    uncertainty: np.ndarray,
+    uncertainty_samples: int,
+    scale: UncertaintyColourScale,
+    evidence: bool,
+) -> dict[str, object]:
+    """What ``summary.json`` says about the photo, the person, the crop, the keypoints and the
+    ``(V,)`` uncertainty (metres, from ``uncertainty_samples`` samples); :func:`predict_photo`
+    adds the run's settings and files."""
+    detection = posterior.network_input.detection
     crop = posterior.crop
-    summary = {
+    return {
         "image": str(image),
         "image_absolute": str(Path(image).resolve()),
         "image_size": {"width": detection.image_size[0], "height": detection.image_size[1]},
@@ -342,30 +411,12 @@ def predict_photo(
             "mode_reprojected": mode.keypoints2d[0],
         },
         "uncertainty": {
-            "mean_m": float(uncertainty_np.mean()),
-            "max_m": float(uncertainty_np.max()),
+            "mean_m": float(uncertainty.mean()),
+            "max_m": float(uncertainty.max()),
             "samples": uncertainty_samples,
             "colour_scale": scale.describe(),
         },
-        "samples": samples,
-        "seed": seed,
-        "formats": list(formats),
-        "frames": DISPLAY_FRAME_NOTE,
-        "files": files,
-        "timings": timings,
-        "model": model_path,
     }
-    write_json(summary_path, summary)
-    return PhotoResult(
-        image=image,
-        folder=folder,
-        files=files,
-        seconds=timings["total_s"],
-        person_box=tuple(float(v) for v in detection.person_box),
-        note=posterior.fallback_reason and f"network posterior ({posterior.fallback_reason})",
-        shape_mean=posterior.shape_mean.detach().cpu(),
-        shape_std=posterior.shape_std.detach().cpu(),
-    )
 
 
 def _posterior_summary(posterior: BodyPosterior, evidence: bool) -> dict[str, object]:
@@ -409,12 +460,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        formats = parse_formats(args.formats)
-        bbox = parse_bbox(args.bbox)
-        if args.samples < 0:
-            raise UsageError(f"--samples must be >= 0, got {args.samples}")
-        if args.uncertainty_samples < 2:
-            raise UsageError(f"--uncertainty-samples must be >= 2, got {args.uncertainty_samples}")
+        formats, bbox = _checked_options(args)
     except UsageError as error:
         parser.print_usage(sys.stderr)
         print(f"{PROG}: error: {error}", file=sys.stderr)
@@ -432,71 +478,36 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: error: {len(taken)} result folder(s) already exist ({shown}); pass "
               "--overwrite to replace them, or choose another --out", file=sys.stderr)  # fmt: skip
         return 2
-
-    from hkpd.network.checkpoint import CheckpointError
-
-    try:
-        predictor = load_predictor(args.model, args.device)
-    except (FileNotFoundError, CheckpointError, ValueError, RuntimeError, KeyError) as error:
-        hint = "" if args.model else " (choose a checkpoint with --model PATH)"
-        print(f"{PROG}: error: cannot load the model: {_one_line(error)}{hint}", file=sys.stderr)
+    predictor = _loaded_or_reported(args)
+    if predictor is None:
         return 2
     model_path = args.model or "shipped model (hkpd.assets/models/hkpd_hierarchical.pt)"
-
-    from tqdm import tqdm
 
     grad_was_enabled = torch.is_grad_enabled()
     torch.set_grad_enabled(False)  # restored below: main() may be called from Python
     scale = UncertaintyColourScale()
-    expected = _expected_errors()
     results: list[PhotoResult] = []
-    try:
-        progress = tqdm(
-            list(zip(images, names, strict=True)),
-            desc=PROG,
-            unit="photo",
-            file=sys.stderr,
+
+    def predict_into(folder: Path, image: Path) -> PhotoResult:
+        return _predict_into(
+            folder,
+            predictor,
+            image,
+            samples=args.samples,
+            formats=formats,
+            bbox=bbox,
+            seed=args.seed,
+            model_path=str(model_path),
+            scale=scale,
+            uncertainty_samples=args.uncertainty_samples,
+            evidence=not args.no_evidence,
         )
-        for image, name in progress:
-            try:
-                result = _predict_into(
-                    args.out / name,
-                    predictor,
-                    image,
-                    samples=args.samples,
-                    formats=formats,
-                    bbox=bbox,
-                    seed=args.seed,
-                    model_path=str(model_path),
-                    scale=scale,
-                    uncertainty_samples=args.uncertainty_samples,
-                    evidence=not args.no_evidence,
-                )
-            except expected as error:
-                result = PhotoResult(image=image, error=_one_line(error))
-            except Exception as error:  # unexpected: still one line, and go on
-                result = PhotoResult(image=image, error=f"{type(error).__name__}: {error}")
-            if result.error is not None and result.error.startswith(f"{image}: "):
-                result.error = result.error[len(f"{image}: ") :]  # the path is said once
-            results.append(result)
-            if result.error is not None:
-                tqdm.write(f"{PROG}: FAILED {image}: {result.error}", file=sys.stderr)
-            else:
-                box = ", ".join(f"{value:.0f}" for value in result.person_box or ())
-                tqdm.write(
-                    f"{image}: person at bbox ({box}) -> {result.folder} ({result.seconds:.1f} s)"
-                    + (f" [{result.note}]" if result.note else ""),
-                    file=sys.stdout,
-                )
+
+    try:
+        _predict_all(predict_into, list(zip(images, names, strict=True)), args.out, results)
         combined = None
         if args.same_person:
-            try:
-                combined = _combine_into(
-                    args.out / combined_name, predictor, results, formats, scale
-                )
-            except (ValueError, OSError) as error:
-                combined = f"combined shape FAILED: {_one_line(error)}"
-                print(f"{PROG}: {combined}", file=sys.stderr)
+            combined = _combine_into(args.out / combined_name, predictor, results, formats, scale)
     except KeyboardInterrupt:
         print(f"\n{PROG}: interrupted after {len(results)} of {len(images)} photos; the "
               "folders written so far are complete", file=sys.stderr)  # fmt: skip
@@ -506,12 +517,73 @@ def main(argv: Sequence[str] | None = None) -> int:
         closer = getattr(predictor, "close", None)
         if closer is not None:
             closer()
+    return _final_report(args.out, results, combined)
+
+
+def _checked_options(
+    args: argparse.Namespace,
+) -> tuple[tuple[str, ...], tuple[float, float, float, float] | None]:
+    """The parsed ``--format`` and ``--bbox``, or a UsageError for any unusable option."""
+    formats = parse_formats(args.formats)
+    bbox = parse_bbox(args.bbox)
+    if args.samples < 0:
+        raise UsageError(f"--samples must be >= 0, got {args.samples}")
+    if args.uncertainty_samples < 2:
+        raise UsageError(f"--uncertainty-samples must be >= 2, got {args.uncertainty_samples}")
+    return formats, bbox
+
+
+def _loaded_or_reported(args: argparse.Namespace) -> Predictor | None:
+    """The predictor of ``--model`` on ``--device``, or None once the reason is printed."""
+    from hkpd.network.checkpoint import CheckpointError
+
+    try:
+        return load_predictor(args.model, args.device)
+    except (FileNotFoundError, CheckpointError, ValueError, RuntimeError, KeyError) as error:
+        hint = "" if args.model else " (choose a checkpoint with --model PATH)"
+        print(f"{PROG}: error: cannot load the model: {_one_line(error)}{hint}", file=sys.stderr)
+        return None
+
+
+def _predict_all(
+    predict_into: Callable[[Path, Path], PhotoResult],
+    photos: Sequence[tuple[Path, str]],
+    out: Path,
+    results: list[PhotoResult],
+) -> None:
+    """``predict_into(out / name, image)`` for every ``(image, name)``, appending each result
+    to ``results`` and reporting it on one line (a photo that fails is reported and
+    skipped)."""
+    from tqdm import tqdm
+
+    expected = _expected_errors()
+    for image, name in tqdm(photos, desc=PROG, unit="photo", file=sys.stderr):
+        try:
+            result = predict_into(out / name, image)
+        except expected as error:
+            result = PhotoResult(image=image, error=_one_line(error))
+        except Exception as error:  # unexpected: still one line, and go on
+            result = PhotoResult(image=image, error=f"{type(error).__name__}: {error}")
+        if result.error is not None and result.error.startswith(f"{image}: "):
+            result.error = result.error[len(f"{image}: ") :]  # the path is said once
+        results.append(result)
+        if result.error is not None:
+            tqdm.write(f"{PROG}: FAILED {image}: {result.error}", file=sys.stderr)
+        else:
+            box = ", ".join(f"{value:.0f}" for value in result.person_box or ())
+            tqdm.write(
+                f"{image}: person at bbox ({box}) -> {result.folder} ({result.seconds:.1f} s)"
+                + (f" [{result.note}]" if result.note else ""),
+                file=sys.stdout,
+            )
+
+
+def _final_report(out: Path, results: Sequence[PhotoResult], combined: str | None) -> int:
+    """Print the closing line; the exit status (1 when a photo or the combined shape failed)."""
     failed = [result for result in results if result.error is not None]
     done = len(results) - len(failed)
     files = sum(len(result.files) for result in results if result.error is None)
-    written = (
-        f"wrote {files} files in {done} folder(s) under {args.out}" if done else "nothing written"
-    )
+    written = f"wrote {files} files in {done} folder(s) under {out}" if done else "nothing written"
     if combined is not None:
         written += f"; {combined}"
     print(f"{PROG}: {done} of {len(results)} photos done, {len(failed)} failed; {written}")
@@ -566,20 +638,25 @@ def _combine_into(
     scale: UncertaintyColourScale,
 ) -> str:
     """Write the shape combined from the photos that succeeded into ``folder`` (atomically)
-    and say what was written, for the final line."""
+    and say what was written, for the final line (a failure is also printed to stderr)."""
     done = [result for result in results if result.error is None and result.shape_mean is not None]
     if not done:
         return "no combined shape (no photo succeeded)"
     means = torch.stack([result.shape_mean for result in done])
     stds = torch.stack([result.shape_std for result in done])
-    combined = combine_shape_tensors(means, stds, predictor.body, "product")
-    baseline = combine_shape_tensors(means, stds, predictor.body, "mean")
-    files = _written_atomically(
-        folder,
-        lambda partial: write_combined_shape(
-            partial, combined, baseline, [r.image for r in done], means, stds, formats, scale
-        ),
-    )
+    try:
+        combined = combine_shape_tensors(means, stds, predictor.body, "product")
+        baseline = combine_shape_tensors(means, stds, predictor.body, "mean")
+        files = _written_atomically(
+            folder,
+            lambda partial: write_combined_shape(
+                partial, combined, baseline, [r.image for r in done], means, stds, formats, scale
+            ),
+        )
+    except (ValueError, OSError) as error:
+        failure = f"combined shape FAILED: {_one_line(error)}"
+        print(f"{PROG}: {failure}", file=sys.stderr)
+        return failure
     return (
         f"combined shape of {len(done)} photo(s) (mean std {combined.mean_std:.3f}, one photo "
         f"{float(stds.mean()):.3f}): {len(files)} files in {folder}"

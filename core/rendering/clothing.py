@@ -25,6 +25,8 @@ measured from the given rest vertices, so any SMPL-like body in a T-pose works.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
+
 import torch
 
 GREY_FRACTION = 0.1
@@ -72,6 +74,53 @@ NEUTRAL_GARMENT_PROBABILITY = 0.3
 
 def _member(labels: torch.Tensor, parts: tuple[int, ...]) -> torch.Tensor:
     return torch.isin(labels, torch.tensor(parts, device=labels.device))
+
+
+class _Draws:
+    """The random numbers of one :meth:`ClothingTextureSampler.sample` call, ``count`` at a time,
+    drawn on ``device`` from ``generator``."""
+
+    def __init__(self, count: int, generator: torch.Generator | None, device: torch.device) -> None:
+        self.count, self.generator, self.device = count, generator, device
+
+    def uniform(self, low: float, high: float) -> torch.Tensor:
+        """``(count,)`` uniform in ``[low, high)``."""
+        return low + (high - low) * torch.rand(
+            (self.count,), generator=self.generator, device=self.device
+        )
+
+    def choice(self, probabilities: tuple[float, ...]) -> torch.Tensor:
+        """``(count,)`` long indices drawn with these probabilities."""
+        weights = torch.tensor(probabilities, device=self.device)
+        return torch.multinomial(weights, self.count, replacement=True, generator=self.generator)
+
+
+@dataclass(frozen=True)
+class _Outfit:
+    """Each body's garment geometry, ``(B, 1)`` rest-pose coordinates in metres (SMPL axes) or
+    yes/no flags.
+
+    Attributes:
+        sleeve_end: distance from the body's axis (``|x|``) where sleeves end.
+        hem_height, waist, neckline, hairline, hair_nape: heights (``y``).
+        hair_back: depth (``z``) in front of which the back of the head has no hair.
+        turtleneck, jumpsuit, shoes, bald: bool flags.
+    """
+
+    sleeve_end: torch.Tensor
+    hem_height: torch.Tensor
+    waist: torch.Tensor
+    neckline: torch.Tensor
+    turtleneck: torch.Tensor
+    jumpsuit: torch.Tensor
+    shoes: torch.Tensor
+    bald: torch.Tensor
+    hairline: torch.Tensor
+    hair_back: torch.Tensor
+    hair_nape: torch.Tensor
+
+    def to(self, device: torch.device) -> _Outfit:
+        return _Outfit(**{f.name: getattr(self, f.name).to(device) for f in fields(self)})
 
 
 class ClothingTextureSampler:
@@ -170,48 +219,65 @@ class ClothingTextureSampler:
             ``(B, F, 3)`` float32 albedo in [0, 1].
         """
         device = torch.device(device)
-        draw = generator.device if generator is not None else device
-        features = self._features(device)
+        draws = _Draws(count, generator, generator.device if generator is not None else device)
+        outfit = self._draw_outfit(draws)
+        table = self._draw_colour_table(draws, outfit.jumpsuit)
+        top_pattern = self._pattern_parameters(count, generator, draws.device)
+        bottom_pattern = self._pattern_parameters(count, generator, draws.device)
+        bottom_pattern = {
+            name: torch.where(outfit.jumpsuit.view((count,) + (1,) * (value.dim() - 1)), top, value)
+            for (name, value), top in zip(bottom_pattern.items(), top_pattern.values(), strict=True)
+        }
+        # Per-body parameters to the output device; per-face work happens there.
+        outfit, table = outfit.to(device), table.to(device)
+        top_pattern = {name: value.to(device) for name, value in top_pattern.items()}
+        bottom_pattern = {name: value.to(device) for name, value in bottom_pattern.items()}
+        centre = self._features(device)["centre"]
+        top_bit = self._pattern_bits(top_pattern, centre)
+        code = self._face_codes(outfit, top_bit, self._pattern_bits(bottom_pattern, centre))
+        code = code.long() + torch.arange(count, device=device)[:, None] * table.shape[1]
+        albedo = table.reshape(-1, 3).clamp(0.0, 1.0).index_select(0, code.view(-1))
+        return albedo.view(count, self.num_faces, 3)
+
+    def _draw_outfit(self, draws: _Draws) -> _Outfit:
+        """Each body's garment geometry: sleeve, hem, waist, neckline, shoes and hair."""
         marks = self.landmarks
-
-        def uniform(low: float, high: float, *shape: int) -> torch.Tensor:
-            shape = shape or (count,)
-            return low + (high - low) * torch.rand(shape, generator=generator, device=draw)
-
-        def choice(probabilities: tuple[float, ...]) -> torch.Tensor:
-            weights = torch.tensor(probabilities, device=draw)
-            return torch.multinomial(weights, count, replacement=True, generator=generator)
-
-        # Outfit geometry (per body).
-        sleeve = choice(SLEEVE_PROBABILITIES)
+        sleeve = draws.choice(SLEEVE_PROBABILITIES)
         sleeve_end = torch.stack(
             (
-                marks["shoulder"] - uniform(0.0, 0.02),
-                marks["shoulder"] + uniform(0.04, 0.14),
-                marks["wrist"] - uniform(0.0, 0.04),
+                marks["shoulder"] - draws.uniform(0.0, 0.02),
+                marks["shoulder"] + draws.uniform(0.04, 0.14),
+                marks["wrist"] - draws.uniform(0.0, 0.04),
             ),
             dim=1,
         ).gather(1, sleeve[:, None])
-        hem = choice(HEM_PROBABILITIES)
+        hem = draws.choice(HEM_PROBABILITIES)
         hem_height = torch.stack(
             (
-                marks["crotch"] - uniform(0.05, 0.25),
-                marks["knee"] + uniform(-0.06, 0.06),
-                marks["ankle"] + uniform(-0.02, 0.03),
+                marks["crotch"] - draws.uniform(0.05, 0.25),
+                marks["knee"] + draws.uniform(-0.06, 0.06),
+                marks["ankle"] + draws.uniform(-0.02, 0.03),
             ),
             dim=1,
         ).gather(1, hem[:, None])
-        waist = marks["waist"] + uniform(-0.08, 0.04)[:, None]
-        neckline = marks["neck"] - uniform(0.0, 0.12)[:, None]
-        turtleneck = uniform(0.0, 1.0)[:, None] < 0.1
-        jumpsuit = uniform(0.0, 1.0)[:, None] < JUMPSUIT_PROBABILITY
-        shoes = uniform(0.0, 1.0)[:, None] < SHOE_PROBABILITY
-        bald = uniform(0.0, 1.0)[:, None] < BALD_PROBABILITY
-        hairline = marks["head_top"] - uniform(0.03, 0.10)[:, None]
-        hair_back = self.head_centre[2].item() + uniform(-0.06, 0.02)[:, None]
-        hair_nape = marks["neck"] + uniform(0.02, 0.12)[:, None]
+        return _Outfit(
+            sleeve_end=sleeve_end,
+            hem_height=hem_height,
+            waist=marks["waist"] + draws.uniform(-0.08, 0.04)[:, None],
+            neckline=marks["neck"] - draws.uniform(0.0, 0.12)[:, None],
+            turtleneck=draws.uniform(0.0, 1.0)[:, None] < 0.1,
+            jumpsuit=draws.uniform(0.0, 1.0)[:, None] < JUMPSUIT_PROBABILITY,
+            shoes=draws.uniform(0.0, 1.0)[:, None] < SHOE_PROBABILITY,
+            bald=draws.uniform(0.0, 1.0)[:, None] < BALD_PROBABILITY,
+            hairline=marks["head_top"] - draws.uniform(0.03, 0.10)[:, None],
+            hair_back=self.head_centre[2].item() + draws.uniform(-0.06, 0.02)[:, None],
+            hair_nape=marks["neck"] + draws.uniform(0.02, 0.12)[:, None],
+        )
 
-        # Colour table per body: skin, top (2 colours), bottom (2), hair, shoes.
+    def _draw_colour_table(self, draws: _Draws, jumpsuit: torch.Tensor) -> torch.Tensor:
+        """``(B, 7, 3)`` each body's colours: skin, top (2 colours), bottom (2), hair, shoes
+        (one grey level throughout for the grey share)."""
+        count, generator, draw = draws.count, draws.generator, draws.device
         skin = self._palette(SKIN_TONES, count, 0.04, generator, draw)
         hair = self._palette(HAIR_COLOURS, count, 0.04, generator, draw)
         shoe_colour = self._random_colours(count, generator, draw, neutral=0.7)
@@ -227,58 +293,34 @@ class ClothingTextureSampler:
         table = torch.cat(
             (skin[:, None], top_colours, bottom_colours, hair[:, None], shoe_colour[:, None]), dim=1
         )
-        grey = uniform(0.0, 1.0) < self.grey_fraction
-        grey_level = uniform(0.4, 0.8)[:, None, None].expand_as(table)
-        table = torch.where(grey[:, None, None], grey_level, table)
+        grey = draws.uniform(0.0, 1.0) < self.grey_fraction
+        grey_level = draws.uniform(0.4, 0.8)[:, None, None].expand_as(table)
+        return torch.where(grey[:, None, None], grey_level, table)
 
-        # Patterns: which of a garment's two colours each face takes.
-        top_pattern = self._pattern_parameters(count, generator, draw)
-        bottom_pattern = self._pattern_parameters(count, generator, draw)
-        bottom_pattern = {
-            name: torch.where(jumpsuit.view((count,) + (1,) * (value.dim() - 1)), top, value)
-            for (name, value), top in zip(bottom_pattern.items(), top_pattern.values(), strict=True)
-        }
-        # Per-body parameters to the output device; per-face work happens there.
-        (sleeve_end, hem_height, waist, neckline, turtleneck, shoes, bald, hairline) = (
-            value.to(device)
-            for value in (
-                sleeve_end,
-                hem_height,
-                waist,
-                neckline,
-                turtleneck,
-                shoes,
-                bald,
-                hairline,
-            )
-        )
-        hair_back, hair_nape, table = hair_back.to(device), hair_nape.to(device), table.to(device)
-        top_pattern = {name: value.to(device) for name, value in top_pattern.items()}
-        bottom_pattern = {name: value.to(device) for name, value in bottom_pattern.items()}
+    def _face_codes(
+        self, outfit: _Outfit, top_bit: torch.Tensor, bottom_bit: torch.Tensor
+    ) -> torch.Tensor:
+        """``(B, F)`` uint8 row of each face in its body's colour table: 0 skin, 1-2 top, 3-4
+        bottom, 5 hair, 6 shoes (``top_bit``, ``bottom_bit``: the patterns' ``(B, F)`` 0/1)."""
+        features = self._features(top_bit.device)
         centre = features["centre"]
-        top_bit = self._pattern_bits(top_pattern, centre)
-        bottom_bit = self._pattern_bits(bottom_pattern, centre)
-
         # Regions (B, F); they are disjoint, so the colour code is a sum.
         height = centre[:, 1][None]
-        covered_arm = features["is_arm"] & (features["arm_reach"][None] <= sleeve_end)
-        upper_torso = features["is_torso"] & (height >= waist)
-        in_top = covered_arm | (upper_torso & (height <= neckline))
-        in_top |= turtleneck & features["is_neck"]
-        covered_leg = features["is_leg"] & (height >= hem_height)
-        in_bottom = covered_leg | (features["is_torso"] & (height < waist))
-        behind_head = (centre[:, 2][None] < hair_back) & (height > hair_nape)
-        in_hair = features["is_head"] & ((height > hairline) | behind_head) & ~bald
-        in_shoes = features["is_foot"] & shoes
-        # One byte per face: 0 skin, 1-2 top, 3-4 bottom, 5 hair, 6 shoes.
+        covered_arm = features["is_arm"] & (features["arm_reach"][None] <= outfit.sleeve_end)
+        upper_torso = features["is_torso"] & (height >= outfit.waist)
+        in_top = covered_arm | (upper_torso & (height <= outfit.neckline))
+        in_top |= outfit.turtleneck & features["is_neck"]
+        covered_leg = features["is_leg"] & (height >= outfit.hem_height)
+        in_bottom = covered_leg | (features["is_torso"] & (height < outfit.waist))
+        behind_head = (centre[:, 2][None] < outfit.hair_back) & (height > outfit.hair_nape)
+        in_hair = features["is_head"] & ((height > outfit.hairline) | behind_head) & ~outfit.bald
+        in_shoes = features["is_foot"] & outfit.shoes
         byte = torch.uint8
         code = in_top.to(byte) * (top_bit + 1)
         code += in_bottom.to(byte) * (bottom_bit + 3)
         code += in_hair.to(byte) * 5
         code += in_shoes.to(byte) * 6
-        code = code.long() + torch.arange(count, device=device)[:, None] * table.shape[1]
-        albedo = table.reshape(-1, 3).clamp(0.0, 1.0).index_select(0, code.view(-1))
-        return albedo.view(count, self.num_faces, 3)
+        return code
 
     # --- colours and patterns ---------------------------------------------------------------
 

@@ -129,6 +129,38 @@ def rasterize(
     return Rasterization(face_index=face_index, depth=depth)
 
 
+@dataclass(frozen=True)
+class _ProjectedFaces:
+    """A chunk's faces on screen.
+
+    Attributes:
+        xs, ys: per corner, ``(b, F)`` projected pixel coordinates.
+        vertex_z: ``(b, V)`` camera-frame depths of the vertices.
+        area: ``(b, F)`` twice the signed screen area (positive: facing the camera).
+    """
+
+    xs: list[torch.Tensor]
+    ys: list[torch.Tensor]
+    vertex_z: torch.Tensor
+    area: torch.Tensor
+
+
+@dataclass(frozen=True)
+class _FaceBoxes:
+    """The drawable faces of a chunk, sorted by the size group of their boxes.
+
+    Attributes:
+        selected: ``(n,)`` flat index ``image * F + face`` of each drawable face.
+        low_x, low_y: ``(n,)`` float, the box's first pixel centre (clamped to the image).
+        counts: faces per size group (``ChunkRasterizer.shapes``), in sorted order.
+    """
+
+    selected: torch.Tensor
+    low_x: torch.Tensor
+    low_y: torch.Tensor
+    counts: list[int]
+
+
 class ChunkRasterizer:
     """Rasterises a few images at a time into caller-provided outputs.
 
@@ -204,8 +236,18 @@ class ChunkRasterizer:
         vertex_z = vertices[..., 2].contiguous()
         xs = [pixel_x.index_select(1, corner) for corner in self.corners]
         ys = [pixel_y.index_select(1, corner) for corner in self.corners]
-
         area = (xs[2] - xs[0]) * (ys[1] - ys[0]) - (xs[1] - xs[0]) * (ys[2] - ys[0])
+        faces = _ProjectedFaces(xs, ys, vertex_z, area)
+        boxes = self._face_boxes(faces)
+        coefficients = self._pixel_functions(faces, boxes)
+        buffer = self._nearest_keys(coefficients, boxes, batch, vertices.device)
+        words = buffer[: batch * size * size].view(torch.int32).view(batch, size, size, 2)
+        torch.sub(words[..., 0], 1, out=face_index_out)
+        torch.reciprocal(words[..., 1].view(torch.float32), out=depth_out)
+
+    def _face_boxes(self, faces: _ProjectedFaces) -> _FaceBoxes:
+        """Method steps 1-2: the drawable faces' boxes of pixel centres, sorted by size group."""
+        size, xs, ys, vertex_z, area = self.size, faces.xs, faces.ys, faces.vertex_z, faces.area
         drawable = area > 0 if self.cull_backfaces else area != 0
         low_x = torch.minimum(torch.minimum(xs[0], xs[1]), xs[2]).ceil_()
         high_x = torch.maximum(torch.maximum(xs[0], xs[1]), xs[2]).floor_()
@@ -229,16 +271,21 @@ class ChunkRasterizer:
         ).long().clamp_(0) + 1
         group = self.group_of.index_select(0, extent_x * (size + 1) + extent_y)
         group, order = group.sort()
-        counts = torch.bincount(group, minlength=len(self.shapes)).tolist()
-        selected = selected.index_select(0, order)
-        low_x = low_x.index_select(0, order)
-        low_y = low_y.index_select(0, order)
+        return _FaceBoxes(
+            selected=selected.index_select(0, order),
+            low_x=low_x.index_select(0, order),
+            low_y=low_y.index_select(0, order),
+            counts=torch.bincount(group, minlength=len(self.shapes)).tolist(),
+        )
 
+    def _pixel_functions(self, faces: _ProjectedFaces, boxes: _FaceBoxes) -> torch.Tensor:
+        """Method step 3: ``(6, n, 3)`` the affine functions of the pixel offset inside each
+        box: three barycentrics, two image-border guards and the inverse depth."""
+        size, selected, low_x, low_y = self.size, boxes.selected, boxes.low_x, boxes.low_y
+        xs, ys, vertex_z, area = faces.xs, faces.ys, faces.vertex_z, faces.area
         # Corner coordinates local to the box, and their inverse depths: (3 corners, n).
         corner_x = torch.stack([c.view(-1).index_select(0, selected) for c in xs]) - low_x
         corner_y = torch.stack([c.view(-1).index_select(0, selected) for c in ys]) - low_y
-        image = torch.div(selected, self.num_faces, rounding_mode="floor")
-        face_plus_one = selected - image * self.num_faces + 1
         inverse_vertex_z = vertex_z.reciprocal()
         inverse_z = torch.stack(
             [
@@ -262,17 +309,25 @@ class ChunkRasterizer:
         zeros = torch.zeros_like(inverse_area)
         x_guard = torch.stack((-ones, zeros, (size - 1) - low_x), dim=1)  # ox <= size-1-low_x
         y_guard = torch.stack((zeros, -ones, (size - 1) - low_y), dim=1)
-        coefficients = torch.cat(
+        return torch.cat(
             (barycentric, x_guard[None], y_guard[None], inverse_depth), dim=0
         )  # (6, n, 3): three barycentrics, two guards, inverse depth
 
-        base = image * (size * size) + low_y.long() * size + low_x.long()
+    def _nearest_keys(
+        self, coefficients: torch.Tensor, boxes: _FaceBoxes, batch: int, device: torch.device
+    ) -> torch.Tensor:
+        """Method step 4: the flat ``(b*H*W + pad,)`` z-buffer of packed keys
+        ``bits(1/z) << 32 | (face + 1)``, the nearest face's per pixel (0 where empty)."""
+        size, selected = self.size, boxes.selected
+        image = torch.div(selected, self.num_faces, rounding_mode="floor")
+        face_plus_one = selected - image * self.num_faces + 1
+        base = image * (size * size) + boxes.low_y.long() * size + boxes.low_x.long()
         largest_offset = (max(self.shapes)[0] - 1) * (size + 1)
         buffer = torch.zeros(
-            batch * size * size + largest_offset + 1, dtype=torch.long, device=vertices.device
+            batch * size * size + largest_offset + 1, dtype=torch.long, device=device
         )
         start = 0
-        for group_id, count in enumerate(counts):
+        for group_id, count in enumerate(boxes.counts):
             if count == 0:
                 continue
             stop = start + count
@@ -287,7 +342,4 @@ class ChunkRasterizer:
             index = base[start:stop, None] + pixel_offset
             buffer.scatter_reduce_(0, index.view(-1), packed.view(-1), "amax")
             start = stop
-
-        words = buffer[: batch * size * size].view(torch.int32).view(batch, size, size, 2)
-        torch.sub(words[..., 0], 1, out=face_index_out)
-        torch.reciprocal(words[..., 1].view(torch.float32), out=depth_out)
+        return buffer

@@ -55,6 +55,7 @@ from hkpd.rendering import (
     BackgroundSource,
     ClothingTextureSampler,
     MeshRenderer,
+    RenderOutput,
     sample_cameras,
     sample_lighting,
 )
@@ -116,6 +117,46 @@ class RenderedBatch:
     part_map: torch.Tensor
     input_keypoints: torch.Tensor
     input_present: torch.Tensor
+
+
+@dataclass(frozen=True)
+class _Scene:
+    """The drawn people of one batch, camera frame (metres; the camera looks along +z).
+
+    Attributes:
+        body_pose: ``(B, 23, 3, 3)``; global_orient: ``(B, 3, 3)``; betas: ``(B, K)``.
+        translation: ``(B, 3)`` the root joint's position; focal_full: ``(B,)`` the focal
+            length in the full 256-px frame, pixels.
+        vertices, joints3d, keypoints3d: ``(B, V, 3)``, ``(B, 24, 3)``, ``(B, 17, 3)``.
+    """
+
+    body_pose: torch.Tensor
+    global_orient: torch.Tensor
+    betas: torch.Tensor
+    translation: torch.Tensor
+    focal_full: torch.Tensor
+    vertices: torch.Tensor
+    joints3d: torch.Tensor
+    keypoints3d: torch.Tensor
+
+
+@dataclass(frozen=True)
+class _CropCamera:
+    """The camera of the crop: ``(B,)`` focal length and ``(B, 2)`` principal-point shift,
+    pixels at ``size``."""
+
+    focal: torch.Tensor
+    shift: torch.Tensor
+    size: int
+
+    def to_crop_camera(self, points: torch.Tensor) -> torch.Tensor:
+        """``(B, N, 3)`` points sheared so that the crop's centre projects to the middle."""
+        shear = self.shift[:, None] * points[..., 2:] / self.focal[:, None, None]
+        return torch.cat([points[..., :2] + shear, points[..., 2:]], -1)
+
+    def project(self, points: torch.Tensor) -> torch.Tensor:
+        """``(B, N, 2)`` crop pixels of ``(B, N, 3)`` camera-frame points."""
+        return perspective_project(self.to_crop_camera(points), self.focal[:, None], self.size)
 
 
 def batch_seed(seed: int, index: int) -> int:
@@ -192,9 +233,48 @@ class SyntheticDataGenerator:
         """The packed batch, its ``(B, S, S, 3)`` uint8 images and ``(B, S, S)`` part map
         (with ``fixed_betas`` instead of the drawn shapes when given)."""
         generator = torch.Generator().manual_seed(seed)
-        config, device, size = self.config, self.device, self.config.image_size
-        augment = config.augmentation
+        config, augment = self.config, self.config.augmentation
+        scene = self._draw_scene(count, generator, fixed_betas)
+        camera = self._draw_crop_camera(scene, generator)
+        keypoints2d = camera.project(scene.keypoints3d)
+        rendered, image, part_map, occluded = self._render(scene, camera, generator)
 
+        visible = keypoint_visibility(
+            keypoints2d, scene.keypoints3d[..., 2], rendered.depth, part_map, occluded
+        )
+        input_present = remove_joints(visible, augment, generator)
+        swapped_points = swap_left_right(
+            torch.cat([keypoints2d, input_present[..., None]], -1), augment, generator
+        )
+        input_present = swapped_points[..., 2] > 0.5
+        input_keypoints = jitter_joints(
+            swapped_points[..., :2], config.image_size, augment, generator
+        )
+
+        pixels = image.mul_(255.0).add_(0.5).clamp_(0.0, 255.0).to(torch.uint8)
+        images = pixels.permute(0, 2, 3, 1).contiguous().cpu().numpy()  # contiguous rows for cv2
+        silhouettes = rendered.mask & ~occluded if config.image_proxy == "silhouette" else None
+        planes = image_planes_batch(images, config.image_proxy, silhouettes).to(self.device)
+        packed = PackedBatch(
+            image_planes=planes,
+            input_keypoints=input_keypoints,
+            input_present=input_present,
+            body_pose=scene.body_pose,
+            global_orient=scene.global_orient,
+            betas=scene.betas,
+            keypoints2d=keypoints2d,
+            visible=visible,
+            joints3d=scene.joints3d,
+            translation=scene.translation,
+            focal_px=camera.focal,
+        )
+        return packed, images, part_map
+
+    def _draw_scene(
+        self, count: int, generator: torch.Generator, fixed_betas: torch.Tensor | None
+    ) -> _Scene:
+        """Poses, view, shapes and cameras of ``count`` people, and their posed bodies."""
+        config, device = self.config, self.device
         body_pose, world_orient = self.pose_source.sample(count, generator)
         body_pose, world_orient = body_pose.to(device).float(), world_orient.to(device).float()
         yaw = (torch.rand(count, generator=generator) * 2 - 1) * math.pi
@@ -220,29 +300,42 @@ class SyntheticDataGenerator:
         with torch.no_grad():
             posed = self.body(betas, body_pose, global_orient)
         origin = posed.joints[:, :1] - translation[:, None]
-        vertices = posed.vertices - origin
-        joints3d = posed.joints - origin
-        keypoints3d = posed.keypoints - origin
+        return _Scene(
+            body_pose=body_pose,
+            global_orient=global_orient,
+            betas=betas,
+            translation=translation,
+            focal_full=focal_full,
+            vertices=posed.vertices - origin,
+            joints3d=posed.joints - origin,
+            keypoints3d=posed.keypoints - origin,
+        )
 
-        # The crop: a square box around the keypoints projected in the full 256-px frame.
-        full_frame = torch.ones(count, keypoints3d.shape[1], dtype=torch.bool, device=device)
-        projected = perspective_project(keypoints3d, focal_full[:, None], CROP_SIZE)
+    def _draw_crop_camera(self, scene: _Scene, generator: torch.Generator) -> _CropCamera:
+        """The crop: a square box around the keypoints projected in the full 256-px frame,
+        scaled by the augmentation's random factor, seen at ``image_size`` pixels."""
+        count, device = scene.keypoints3d.shape[0], self.device
+        full_frame = torch.ones(count, scene.keypoints3d.shape[1], dtype=torch.bool, device=device)
+        projected = perspective_project(scene.keypoints3d, scene.focal_full[:, None], CROP_SIZE)
         centre, side = square_box_around_keypoints(projected, full_frame, CROP_MARGIN)
-        low, high = augment.bbox_scale_range
+        low, high = self.config.augmentation.bbox_scale_range
         side = side * (low + (high - low) * torch.rand(count, generator=generator)).to(device)
-        zoom = size / side
-        focal = focal_full * zoom
+        zoom = self.config.image_size / side
         shift = (CROP_SIZE / 2 - centre) * zoom[:, None]  # pixels, in the crop
+        return _CropCamera(scene.focal_full * zoom, shift, self.config.image_size)
 
-        def to_crop_camera(points: torch.Tensor) -> torch.Tensor:
-            shear = shift[:, None] * points[..., 2:] / focal[:, None, None]
-            return torch.cat([points[..., :2] + shear, points[..., 2:]], -1)
-
-        keypoints2d = perspective_project(to_crop_camera(keypoints3d), focal[:, None], size)
-
+    def _render(
+        self, scene: _Scene, camera: _CropCamera, generator: torch.Generator
+    ) -> tuple[RenderOutput, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The rendering, the ``(B, 3, S, S)`` float image on its background after the
+        occlusion augmentations, the ``(B, S, S)`` part map and the ``(B, S, S)`` occluded
+        pixels."""
+        count, size, device = scene.vertices.shape[0], self.config.image_size, self.device
+        augment = self.config.augmentation
         lighting = sample_lighting(count, generator, device)
         colours = self.textures.sample(count, generator, device)
-        rendered = self.renderer.render(to_crop_camera(vertices), focal, colours, lighting)
+        vertices = camera.to_crop_camera(scene.vertices)
+        rendered = self.renderer.render(vertices, camera.focal, colours, lighting)
         part_map = rendered.part_map(self.face_parts)
         background = self.backgrounds.sample(count, generator, size, device)
 
@@ -258,35 +351,7 @@ class SyntheticDataGenerator:
                 image[index] = torch.where(region, colour[index, :, None, None], image[index])
         for index in half.flatten(1).any(1).nonzero().flatten().tolist():
             image[index].masked_fill_(half[index], 0.0)
-        occluded = erased | box | half | limb_box
-
-        visible = keypoint_visibility(
-            keypoints2d, keypoints3d[..., 2], rendered.depth, part_map, occluded
-        )
-        input_present = remove_joints(visible, augment, generator)
-        swapped_points = swap_left_right(
-            torch.cat([keypoints2d, input_present[..., None]], -1), augment, generator
-        )
-        input_present = swapped_points[..., 2] > 0.5
-        input_keypoints = jitter_joints(swapped_points[..., :2], size, augment, generator)
-
-        pixels = image.mul_(255.0).add_(0.5).clamp_(0.0, 255.0).to(torch.uint8)
-        images = pixels.permute(0, 2, 3, 1).contiguous().cpu().numpy()  # contiguous rows for cv2
-        silhouettes = rendered.mask & ~occluded if config.image_proxy == "silhouette" else None
-        packed = PackedBatch(
-            image_planes=image_planes_batch(images, config.image_proxy, silhouettes).to(device),
-            input_keypoints=input_keypoints,
-            input_present=input_present,
-            body_pose=body_pose,
-            global_orient=global_orient,
-            betas=betas,
-            keypoints2d=keypoints2d,
-            visible=visible,
-            joints3d=joints3d,
-            translation=translation,
-            focal_px=focal,
-        )
-        return packed, images, part_map
+        return rendered, image, part_map, erased | box | half | limb_box
 
 
 class SyntheticBatches:

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from hkpd.coco_keypoints import COCO17_LIMBS
+from hkpd.poses import pose_source
 from hkpd.synthesis.generator import (
     RenderedBatch,
     SyntheticDataConfig,
@@ -101,8 +102,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--image-size", type=int, default=256)
     parser.add_argument("--device", default="cpu")
     args = parser.parse_args(argv)
-
-    from hkpd.poses import pose_source
 
     try:
         poses = pose_source(args.poses, args.split)

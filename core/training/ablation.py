@@ -39,6 +39,7 @@ import dataclasses
 import sys
 from pathlib import Path
 
+from hkpd.cpu_allocator import keep_freed_memory
 from hkpd.training.config import TrainConfig, add_config_arguments, config_from_arguments
 
 ABLATION_RUNS: dict[str, dict[str, object]] = {
@@ -100,7 +101,7 @@ def run_ablation(
 ) -> dict[str, Path]:
     """Train (or finish) the runs of ``study`` and export each; returns
     ``{run: exported weights}``."""
-    from hkpd.training.checkpoint import read_checkpoint
+    from hkpd.network.checkpoint import read_checkpoint
     from hkpd.training.export import export_weights
     from hkpd.training.loop import train
 
@@ -140,8 +141,6 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--out (the ablation folder) is required")
     base = config_from_arguments(arguments)
     try:
-        from hkpd.cpu_allocator import keep_freed_memory
-
         keep_freed_memory()
         exported = run_ablation(
             base, Path(arguments.out), show_progress=not arguments.quiet, study=arguments.study

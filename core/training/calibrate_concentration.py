@@ -33,6 +33,7 @@ from pathlib import Path
 import torch
 from tqdm import tqdm
 
+from hkpd.distributions import KinematicMatrixFisher
 from hkpd.evaluation.calibration import calibrated_coverage, truth_rank
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
 from hkpd.network.checkpoint import CALIBRATION_KEY, load_network
@@ -103,8 +104,6 @@ def coverage_by_scale(
         log2_scales: ``(G,)`` the scales tried.
         seed: the sampling seed (the same draws for every scale).
     """
-    from hkpd.distributions import KinematicMatrixFisher
-
     results = torch.empty(len(log2_scales), 2, F.shape[1], dtype=torch.float64)
     for index, log2_scale in enumerate(tqdm(log2_scales.tolist(), unit="scale")):
         scaled = F * 2.0**log2_scale

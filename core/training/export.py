@@ -9,7 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from hkpd.training.checkpoint import load_network, save_checkpoint
+from hkpd.network.checkpoint import load_network, save_checkpoint
 
 
 def export_weights(checkpoint: Path, out: Path) -> Path:

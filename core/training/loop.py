@@ -24,7 +24,13 @@ from hkpd.body import BodyModel
 from hkpd.devices import resolve_device
 from hkpd.evaluation.synthetic import evaluate_batches
 from hkpd.network import DistributionNetwork
-from hkpd.network.checkpoint import load_weights
+from hkpd.network.checkpoint import (
+    load_initial_weights,
+    load_weights,
+    read_checkpoint,
+    restore_random_states,
+    save_checkpoint,
+)
 from hkpd.network.config import NetworkConfig
 from hkpd.poses import PoseSource, pose_source
 from hkpd.synthesis.generator import (
@@ -34,12 +40,6 @@ from hkpd.synthesis.generator import (
     fixed_test_set,
 )
 from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
-from hkpd.training.checkpoint import (
-    load_initial_weights,
-    read_checkpoint,
-    restore_random_states,
-    save_checkpoint,
-)
 from hkpd.training.config import TrainConfig, learning_rate_at
 from hkpd.training.csv_logs import append_row, check_log, complete_row, truncate_log
 from hkpd.training.curves import plot_training_curves

@@ -16,16 +16,10 @@ Usage: ``python -m hkpd.training.recentre_shape IN.pt OUT.pt [--poses poses.npz]
 
 from __future__ import annotations
 
-import sys
-
 import torch
 
 from hkpd.network.hierarchical_head import HierarchicalHead
-from hkpd.training.weight_edit_command import (
-    load_with_proxies,
-    save_edited,
-    weight_edit_arguments,
-)
+from hkpd.training.weight_edit_command import run_weight_edit
 
 
 @torch.no_grad()
@@ -50,20 +44,20 @@ def recentre_shape_mean(network: torch.nn.Module, proxies: torch.Tensor) -> torc
     return offset
 
 
-def main(argv: list[str] | None = None) -> int:
-    arguments = weight_edit_arguments(
-        argv, __doc__.splitlines()[0], "weights to recentre", "crops to average over"
-    )
-    try:
-        network, payload, proxies = load_with_proxies(arguments)
-    except (FileNotFoundError, ValueError) as error:
-        print(f"recentre_shape: error: {error}", file=sys.stderr)
-        return 2
+def _recentre(network: torch.nn.Module, proxies: torch.Tensor) -> str:
     offset = recentre_shape_mean(network, proxies)
-    save_edited(arguments.out, network, payload)
-    print(f"removed the shape-mean offset {[round(v, 3) for v in offset.tolist()]}")
-    print(f"wrote {arguments.out}")
-    return 0
+    return f"removed the shape-mean offset {[round(v, 3) for v in offset.tolist()]}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_weight_edit(
+        argv,
+        "recentre_shape",
+        __doc__.splitlines()[0],
+        "weights to recentre",
+        "crops to average over",
+        _recentre,
+    )
 
 
 if __name__ == "__main__":

@@ -18,7 +18,6 @@ Usage: ``python -m hkpd.training.revive_gains IN.pt OUT.pt [--poses poses.npz]``
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 
 import torch
@@ -26,11 +25,7 @@ import torch
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
 from hkpd.network.hierarchical_head import HierarchicalHead
 from hkpd.network.output_decoding import MAX_LOG_GAIN
-from hkpd.training.weight_edit_command import (
-    load_with_proxies,
-    save_edited,
-    weight_edit_arguments,
-)
+from hkpd.training.weight_edit_command import run_weight_edit
 
 
 @dataclass(frozen=True)
@@ -110,19 +105,11 @@ def revive_stuck_gains(network: torch.nn.Module, proxies: torch.Tensor) -> list[
     return ranges
 
 
-def main(argv: list[str] | None = None) -> int:
-    arguments = weight_edit_arguments(
-        argv, __doc__.splitlines()[0], "weights to repair", "crops to probe with"
-    )
-    try:
-        network, payload, proxies = load_with_proxies(arguments)
-        with torch.no_grad():
-            before = network(proxies).F
-        ranges = revive_stuck_gains(network, proxies)
-    except (FileNotFoundError, ValueError) as error:
-        print(f"revive_gains: error: {error}", file=sys.stderr)
-        return 2
+def _revive(network: torch.nn.Module, proxies: torch.Tensor) -> str | None:
+    """Revive, print every joint's range; say what changed (None: nothing was stuck)."""
     with torch.no_grad():
+        before = network(proxies).F
+        ranges = revive_stuck_gains(network, proxies)
         change = float((network(proxies).F - before).abs().max() / before.abs().max())
     print("| joint | log-gain min | median | max | revived |\n|---|---|---|---|---|")
     for entry in ranges:
@@ -133,11 +120,19 @@ def main(argv: list[str] | None = None) -> int:
     revived = [entry.joint for entry in ranges if entry.revived]
     if not revived:
         print("no joint's gain is stuck beyond the bound; nothing written")
-        return 0
-    save_edited(arguments.out, network, payload)
-    print(f"revived {', '.join(revived)}; largest change of F on the probe crops: {change:.1e}")
-    print(f"wrote {arguments.out}")
-    return 0
+        return None
+    return f"revived {', '.join(revived)}; largest change of F on the probe crops: {change:.1e}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_weight_edit(
+        argv,
+        "revive_gains",
+        __doc__.splitlines()[0],
+        "weights to repair",
+        "crops to probe with",
+        _revive,
+    )
 
 
 if __name__ == "__main__":

@@ -1,10 +1,13 @@
 """The command line shared by the tools that edit trained weights (``recentre_shape`` and
 ``revive_gains`` before a fine-tune, ``calibrate_concentration`` after one): ``IN.pt OUT.pt``,
-crops to probe with, and ``OUT.pt`` is never overwritten."""
+crops to probe with, and ``OUT.pt`` is never overwritten. :func:`run_weight_edit` is the whole
+command of an edit that only needs the probe crops."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import torch
@@ -12,6 +15,11 @@ import torch
 from hkpd.network.checkpoint import load_network, save_checkpoint
 from hkpd.poses import pose_source
 from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
+
+WeightEdit = Callable[[torch.nn.Module, torch.Tensor], str | None]
+"""Changes a network in place, given the ``(B, C, S, S)`` probe crops' proxies, and returns the
+line to print before ``wrote OUT`` (None: nothing to write). A ValueError is reported as an
+error of the command."""
 
 
 def weight_edit_arguments(
@@ -74,3 +82,33 @@ def save_edited(out: Path, network: torch.nn.Module, payload: dict) -> None:
         out, network, payload["network_config"], payload["step"],
         payload["train_config"], payload["samples_seen"],
     )  # fmt: skip
+
+
+def run_weight_edit(
+    argv: list[str] | None,
+    program: str,
+    description: str,
+    checkpoint_help: str,
+    examples_help: str,
+    edit: WeightEdit,
+) -> int:
+    """Parse ``IN.pt OUT.pt [--poses] [--examples] [--seed]``, load the network and the probe
+    crops, apply ``edit`` and write ``OUT.pt`` (unless ``edit`` returns None).
+
+    Returns:
+        The exit status: 0 done (or nothing to write), 2 a missing or unusable checkpoint, or
+        an edit that does not apply to it (the reason is printed as ``program: error: ...``).
+    """
+    arguments = weight_edit_arguments(argv, description, checkpoint_help, examples_help)
+    try:
+        network, payload, proxies = load_with_proxies(arguments)
+        done = edit(network, proxies)
+    except (FileNotFoundError, ValueError) as error:
+        print(f"{program}: error: {error}", file=sys.stderr)
+        return 2
+    if done is None:
+        return 0
+    save_edited(arguments.out, network, payload)
+    print(done)
+    print(f"wrote {arguments.out}")
+    return 0
