@@ -40,6 +40,7 @@ import sys
 from pathlib import Path
 
 from hkpd.cpu_allocator import keep_freed_memory
+from hkpd.network.checkpoint import read_checkpoint
 from hkpd.training.config import TrainConfig, add_config_arguments, config_from_arguments
 
 ABLATION_RUNS: dict[str, dict[str, object]] = {
@@ -101,7 +102,6 @@ def run_ablation(
 ) -> dict[str, Path]:
     """Train (or finish) the runs of ``study`` and export each; returns
     ``{run: exported weights}``."""
-    from hkpd.network.checkpoint import read_checkpoint
     from hkpd.training.export import export_weights
     from hkpd.training.loop import train
 
