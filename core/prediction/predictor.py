@@ -186,14 +186,9 @@ class Predictor:
         if fit.conditioned is None:
             return replace(network_posterior, evidence_fit=fit)
         prior = self._posterior(starts, fit.start, prepared, observed, readings)
-        conditioned = fit.conditioned
         return replace(
             prior,
-            F=conditioned.F.float().to(self.device),
-            shape_mean=conditioned.shape_mean.float().to(self.device),
-            shape_std=conditioned.shape_std.float().to(self.device),
-            global_orient=conditioned.global_orient.float().to(self.device),
-            camera=conditioned.camera.float().to(self.device),
+            distribution=fit.conditioned.map(self._on_device),
             source="evidence",
             prior=prior,
             evidence_fit=fit,
@@ -226,11 +221,7 @@ class Predictor:
         return BodyPosterior(
             upright_tilt_degrees=None if view is None else math.degrees(view.tilt),
             mirror_read=bool(readings.mirrored[row]),
-            F=starts.F[row].float().to(self.device),
-            shape_mean=starts.shape_mean[row].float().to(self.device),
-            shape_std=starts.shape_std[row].float().to(self.device),
-            global_orient=starts.global_orient[row].float().to(self.device),
-            camera=starts.camera[row].float().to(self.device),
+            distribution=starts.rows(row).map(self._on_device),
             crop=prepared.crop,
             keypoints=torch.as_tensor(prepared.detection.keypoints, dtype=torch.float32),
             confidences=torch.as_tensor(prepared.confidences, dtype=torch.float32),
@@ -238,6 +229,10 @@ class Predictor:
             network_input=prepared,
             evidence=torch.as_tensor(observed),
         )
+
+    def _on_device(self, tensor: torch.Tensor) -> torch.Tensor:
+        """``tensor`` as the posterior holds it: float32 on the predictor's device."""
+        return tensor.float().to(self.device)
 
     def _float64_body(self) -> BodyModel:
         """A float64 CPU copy of the body model for the fit (made once)."""
