@@ -15,8 +15,8 @@ The pieces:
   BlazePose (optionally inside a ``bbox``); :class:`NoPersonFoundError` when there is none.
 - :class:`CropTransform`: the square 256-pixel crop around a person and the exact pixel maps
   between crop and photo.
-- :func:`apply_occluders`: black boxes painted over a photo before detection
-  (:func:`points_under_boxes`: which keypoints they hide).
+- :class:`Occluders`, :func:`apply_occluders`: black boxes painted over a photo before edge
+  extraction (:func:`points_under_boxes`: which keypoints they hide).
 - :func:`prepare_network_input` -> :class:`NetworkInput`: all of the above plus the
   ``(18, 256, 256)`` proxy, i.e. everything in front of the network.
 - :func:`combine_shapes` -> :class:`CombinedShape`: one shape from several photos of the same
@@ -38,7 +38,7 @@ from hkpd.prediction.keypoint_detector import (
     NoPersonFoundError,
 )
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
-from hkpd.prediction.occluders import apply_occluders, points_under_boxes
+from hkpd.prediction.occluders import Occluders, apply_occluders, points_under_boxes
 from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
 from hkpd.prediction.predictor import Predictor
 from hkpd.prediction.shape_combination import CombinedShape, combine_shapes
@@ -58,6 +58,7 @@ __all__ = [
     "LoadedImage",
     "NetworkInput",
     "NoPersonFoundError",
+    "Occluders",
     "Predictor",
     "apply_occluders",
     "combine_shapes",

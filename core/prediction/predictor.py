@@ -38,6 +38,7 @@ from hkpd.network.checkpoint import load_network
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
+from hkpd.prediction.occluders import OccluderBoxes, Occluders
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
 from hkpd.prediction.upright_view import UprightView
@@ -120,7 +121,7 @@ class Predictor:
     def predict(
         self,
         image: str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage,
-        occluders: Sequence[Sequence[float]] | np.ndarray | None = None,
+        occluders: Occluders | OccluderBoxes | None = None,
         bbox: Sequence[float] | np.ndarray | None = None,
         evidence: bool = True,
         upright: bool = True,
@@ -161,23 +162,22 @@ class Predictor:
                 image,
                 self.detector,
                 bbox=bbox,
-                occluders=() if occluders is None else occluders,
+                occluders=Occluders.of(occluders),
                 crop_size=self.crop_size,
                 image_proxy=self.image_proxy,
                 silhouette=silhouette,
             )
-            observed = prepared.confidences > 0
             readings = self.reading.read(
-                self._reading_input(prepared, observed), upright=upright, keep_as_it_is=True
+                self._reading_input(prepared), upright=upright, keep_as_it_is=True
             )
             starts = readings.distribution.map(lambda tensor: tensor.detach().float().cpu())
             if not evidence:  # the upright copy's reading when there is one
                 chosen = readings.chosen_rows[0]
-                return self._posterior(starts, chosen, prepared, observed, readings)
-            network_posterior = self._posterior(starts, 0, prepared, observed, readings)
+                return self._posterior(starts, chosen, prepared, readings)
+            network_posterior = self._posterior(starts, 0, prepared, readings)
             keypoint_evidence = KeypointEvidence(
                 torch.as_tensor(prepared.keypoints_crop, dtype=torch.float64),
-                torch.as_tensor(observed),
+                torch.as_tensor(prepared.evidence),
                 self.crop_size,
             )
             fit = condition_on_keypoints(
@@ -185,7 +185,7 @@ class Predictor:
             )
         if fit.conditioned is None:
             return replace(network_posterior, evidence_fit=fit)
-        prior = self._posterior(starts, fit.start, prepared, observed, readings)
+        prior = self._posterior(starts, fit.start, prepared, readings)
         return replace(
             prior,
             distribution=fit.conditioned.map(self._on_device),
@@ -194,7 +194,7 @@ class Predictor:
             evidence_fit=fit,
         )
 
-    def _reading_input(self, prepared: NetworkInput, observed: np.ndarray) -> ReadingInput:
+    def _reading_input(self, prepared: NetworkInput) -> ReadingInput:
         """The reading stage's input for one photo: its proxy; the shown keypoints are the
         evidence; upright copies are framed as the crop was (on every detected keypoint), not
         on the evidence alone: the network learnt crops framed around the whole person, and
@@ -202,7 +202,7 @@ class Predictor:
         return ReadingInput(
             proxy=prepared.proxy[None].to(self.device),
             keypoints=prepared.keypoints_crop[None],
-            shown=observed[None],
+            shown=prepared.evidence[None],
             turned_proxy=PhotoTurnedProxy(prepared, self.image_proxy),
             framing=prepared.box_keypoints_crop[None],
         )
@@ -212,7 +212,6 @@ class Predictor:
         starts: BodyDistribution,
         row: int,
         prepared: NetworkInput,
-        observed: np.ndarray,
         readings: Readings,
     ) -> BodyPosterior:
         """The network's posterior of reading ``row`` of ``readings`` (0: the crop as it is;
@@ -227,7 +226,7 @@ class Predictor:
             confidences=torch.as_tensor(prepared.confidences, dtype=torch.float32),
             body=self.body,
             network_input=prepared,
-            evidence=torch.as_tensor(observed),
+            evidence=torch.as_tensor(prepared.evidence),
         )
 
     def _on_device(self, tensor: torch.Tensor) -> torch.Tensor:
