@@ -73,7 +73,9 @@ class Predictor:
             upright copy is read too (``upright_start_degrees``).
 
     Attributes:
-        reading: the reading stage (its ``network`` is what reads a batch of proxies).
+        network: the distribution network (eval mode, on ``device``).
+        reading: the reading stage (its ``network`` is what reads a batch of proxies: the
+            network, wrapped for the mirror reading unless ``reading_config.mirror`` is off).
 
     Thread safety: ``predict`` may be called from several threads; calls are serialised.
     """

@@ -236,8 +236,8 @@ class ReadingStage:
                 proxies[example] = batch.turned_proxy(example, view).to(proxies.device)
             row_views, chosen = list(views), list(range(count))
         output = _in_crop_frames(self.network(proxies), row_views)
-        return Readings(output, tuple(views), tuple(row_views), tuple(chosen),
-                        self._last_mirrored(len(row_views)))  # fmt: skip
+        mirrored = self._last_mirrored(len(row_views))
+        return Readings(output, tuple(views), tuple(row_views), tuple(chosen), mirrored)
 
     def _turned_proxies(
         self, batch: ReadingInput, turned: list[tuple[int, UprightView]]
@@ -295,10 +295,9 @@ class ReadingStage:
         output = self.network(self._turned_proxies(batch, candidates))
         output = _in_crop_frames(output, [view for _, view in candidates])
         owners = [example for example, _ in candidates]
-        return mode_keypoint_misfits(
-            output, self._body(batch.proxy.device), batch.size,
-            batch.keypoints[owners], batch.shown[owners],
-        )  # fmt: skip
+        body = self._body(batch.proxy.device)
+        keypoints, shown = batch.keypoints[owners], batch.shown[owners]
+        return mode_keypoint_misfits(output, body, batch.size, keypoints, shown)
 
 
 def _in_crop_frames(output: BodyDistribution, views: list[UprightView | None]) -> BodyDistribution:
