@@ -19,6 +19,9 @@ The pieces:
   extraction (:func:`points_under_boxes`: which keypoints they hide).
 - :func:`prepare_network_input` -> :class:`NetworkInput`: all of the above plus the
   ``(18, 256, 256)`` proxy, i.e. everything in front of the network.
+- :class:`ReadingConfig`: how the network reads a crop (mirrored too, upright copies of leaning
+  people, lean search; :mod:`hkpd.prediction.readings`, the stage ``Predictor`` and
+  ``hkpd-eval`` share).
 - :func:`combine_shapes` -> :class:`CombinedShape`: one shape from several photos of the same
   person (product of the photos' shape Gaussians, or the plain mean as a baseline).
 """
@@ -41,6 +44,7 @@ from hkpd.prediction.network_input import NetworkInput, prepare_network_input
 from hkpd.prediction.occluders import Occluders, apply_occluders, points_under_boxes
 from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
 from hkpd.prediction.predictor import Predictor
+from hkpd.prediction.readings import ReadingConfig
 from hkpd.prediction.shape_combination import CombinedShape, combine_shapes
 
 __all__ = [
@@ -60,6 +64,7 @@ __all__ = [
     "NoPersonFoundError",
     "Occluders",
     "Predictor",
+    "ReadingConfig",
     "apply_occluders",
     "combine_shapes",
     "load_image",
