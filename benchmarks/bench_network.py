@@ -104,8 +104,8 @@ def breakdown_table(width, batch_size, repeats, samples, body) -> list[str]:
 
     def losses(weights):
         def run():
-            for name in ("F", "shape_mean", "shape_std", "global_orient", "camera"):
-                getattr(detached, name).requires_grad_(True)
+            for tensor in detached.tensors():
+                tensor.requires_grad_(True)
             compute_losses(detached, batch, body, weights, samples)["total"].backward()
 
         return run

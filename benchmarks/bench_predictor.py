@@ -21,6 +21,7 @@ from pathlib import Path
 import torch
 
 from hkpd.prediction import Predictor
+from hkpd.prediction.readings import ReadingConfig
 
 
 def demo_photo():
@@ -40,9 +41,8 @@ def main() -> None:
     )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    predictor = Predictor.from_pretrained(
-        args.model, device="cpu", mirror_reading=not args.no_mirror_reading
-    )
+    reading = ReadingConfig(mirror=not args.no_mirror_reading)
+    predictor = Predictor.from_pretrained(args.model, device="cpu", reading_config=reading)
     if args.photos:
         photos = sorted(p for p in args.photos.iterdir() if p.suffix.lower() in (".jpg", ".png"))
     else:
@@ -74,7 +74,7 @@ def main() -> None:
     load = os.getloadavg()[0]
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, load {load:.1f}, torch "
           f"{torch.__version__}, threads {args.threads}, network input "
-          f"{predictor.crop_size} px, mirror reading {predictor.mirror_reading}, "
+          f"{predictor.crop_size} px, mirror reading {predictor.reading.config.mirror}, "
           f"{len(photos)} photo(s) x {args.repeats}")  # fmt: skip
     print()
     print("| step | median ms | best ms | target |")

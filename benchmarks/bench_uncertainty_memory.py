@@ -19,13 +19,15 @@ CHILD = """
 import resource, time, torch
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT
+from hkpd.distributions import BodyDistribution
 from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.posterior import BodyPosterior
 torch.set_num_threads(2)
+distribution = BodyDistribution(
+    30.0 * torch.eye(3).expand(23, 3, 3).clone(), torch.zeros(10), torch.ones(10) * 0.3,
+    FRONTAL_GLOBAL_ORIENT.clone(), torch.tensor([0.9, 0.0, 0.0]))
 posterior = BodyPosterior(
-    F=30.0 * torch.eye(3).expand(23, 3, 3).clone(), shape_mean=torch.zeros(10),
-    shape_std=torch.ones(10) * 0.3, global_orient=FRONTAL_GLOBAL_ORIENT.clone(),
-    camera=torch.tensor([0.9, 0.0, 0.0]), crop=CropTransform((100.0, 100.0), 200.0, 128),
+    distribution=distribution, crop=CropTransform((100.0, 100.0), 200.0, 128),
     keypoints=torch.zeros(17, 2), confidences=torch.ones(17), body=BodyModel())
 posterior.vertex_uncertainty(10)
 base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

@@ -17,6 +17,7 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import pixels_to_ndc
+from hkpd.distributions import BodyDistribution
 from hkpd.explorer.demo_scene import DemoScene, render_demo_scene
 from hkpd.explorer.provider import PredictionResult
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
@@ -111,11 +112,13 @@ class OcclusionAwareDouble:
             confidences,
         )  # fmt: skip
         posterior = BodyPosterior(
-            F=F,
-            shape_mean=self.scene.betas.clone(),
-            shape_std=torch.full_like(self.scene.betas, 0.08),
-            global_orient=self.scene.global_orient,
-            camera=self.camera,
+            distribution=BodyDistribution(
+                F=F,
+                shape_mean=self.scene.betas.clone(),
+                shape_std=torch.full_like(self.scene.betas, 0.08),
+                global_orient=self.scene.global_orient,
+                camera=self.camera,
+            ),
             crop=self.crop,
             keypoints=torch.from_numpy(self.scene.keypoints2d).float(),
             confidences=torch.from_numpy(confidences).float(),

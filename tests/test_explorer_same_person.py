@@ -32,11 +32,12 @@ class ShapeByPhotoDouble(OcclusionAwareDouble):
             raise NoPersonFoundError("photo: no person found")
         result = super().predict(image, occluders, evidence, bbox)
         k = float(np.asarray(image)[0, 0, 0])
-        posterior = replace(
-            result.posterior,
+        distribution = replace(
+            result.posterior.distribution,
             shape_mean=result.posterior.shape_mean + 0.1 * k,
             shape_std=torch.full_like(result.posterior.shape_std, BASE_STD * (k + 1)),
         )
+        posterior = replace(result.posterior, distribution=distribution)
         return replace(result, posterior=posterior)
 
 

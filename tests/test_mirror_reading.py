@@ -55,8 +55,8 @@ def test_mirroring_twice_gives_back_the_proxy_and_the_reading() -> None:
     assert not torch.equal(mirror_proxy(proxy), proxy)
     reading = a_reading(3, 0)
     again = unmirror_output(unmirror_output(reading))
-    for name in ("F", "shape_mean", "global_orient", "camera"):
-        torch.testing.assert_close(getattr(again, name), getattr(reading, name))
+    for mine, theirs in zip(again.tensors(), reading.tensors(), strict=True):
+        torch.testing.assert_close(mine, theirs)
 
 
 def test_a_mirrored_reading_maps_back_to_the_mirror_image_of_its_keypoints() -> None:
@@ -85,11 +85,8 @@ class FixedReading(torch.nn.Module):
 
     def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         self.batch_sizes.append(int(proxy.shape[0]))
-        return BodyDistribution(
-            **{name: getattr(self.reading, name).expand(proxy.shape[0], *getattr(
-                self.reading, name).shape[1:]).clone()
-               for name in ("F", "shape_mean", "shape_std", "global_orient", "camera")}
-        )  # fmt: skip
+        count = proxy.shape[0]
+        return self.reading.map(lambda tensor: tensor.expand(count, *tensor.shape[1:]).clone())
 
 
 def test_the_reader_keeps_whichever_reading_fits_the_shown_keypoints() -> None:

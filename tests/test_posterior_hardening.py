@@ -9,7 +9,7 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT
-from hkpd.distributions import KinematicMatrixFisher, MatrixFisher
+from hkpd.distributions import BodyDistribution, KinematicMatrixFisher, MatrixFisher
 from hkpd.kinematic_tree import BODY_PARENTS
 from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.posterior import BodyPosterior
@@ -19,9 +19,15 @@ from hkpd.prediction.posterior import BodyPosterior
 def posterior() -> BodyPosterior:
     generator = torch.Generator().manual_seed(0)
     F = 30.0 * torch.eye(3).expand(23, 3, 3) + torch.randn(23, 3, 3, generator=generator)
+    distribution = BodyDistribution(
+        F,
+        torch.zeros(10),
+        torch.ones(10) * 0.3,
+        FRONTAL_GLOBAL_ORIENT.clone(),
+        torch.tensor([0.9, 0.0, 0.0]),
+    )
     return BodyPosterior(
-        F=F, shape_mean=torch.zeros(10), shape_std=torch.ones(10) * 0.3,
-        global_orient=FRONTAL_GLOBAL_ORIENT.clone(), camera=torch.tensor([0.9, 0.0, 0.0]),
+        distribution=distribution,
         crop=CropTransform((100.0, 100.0), 200.0, 128), keypoints=torch.zeros(17, 2),
         confidences=torch.ones(17), body=BodyModel(),
     )  # fmt: skip

@@ -372,7 +372,7 @@ def test_evidence_false_returns_the_networks_own_output_and_evidence_keeps_it(
     predictor = fake_predictor_factory(checkpoint, "cpu")
     network_only = predictor.predict(scene.image, evidence=False)
     with torch.no_grad():
-        direct = predictor.network(network_only.network_input.proxy[None])
+        direct = predictor.reading.network(network_only.network_input.proxy[None])
     assert network_only.source == "network" and network_only.evidence_fit is None
     torch.testing.assert_close(network_only.F, direct.F[0], rtol=0, atol=0)
     torch.testing.assert_close(network_only.camera, direct.camera[0], rtol=0, atol=0)
@@ -386,10 +386,11 @@ def test_the_predictor_keeps_the_reading_of_the_crop_or_of_its_mirror_image(scen
     from hkpd.network.checkpoint import load_network
     from hkpd.prediction.mirror_reading import mirror_proxy, unmirror_output
     from hkpd.prediction.predictor import Predictor
+    from hkpd.prediction.readings import ReadingConfig
 
     network, _ = load_network(checkpoint, "cpu")
     detector = TruthDetector(scene.keypoints2d, confidences=np.ones(17))
-    once = Predictor(network, "cpu", detector=detector, mirror_reading=False)
+    once = Predictor(network, "cpu", detector=detector, reading_config=ReadingConfig(mirror=False))
     twice = Predictor(network, "cpu", detector=detector)
     read_once = once.predict(scene.image, evidence=False)
     read_twice = twice.predict(scene.image, evidence=False)
@@ -399,7 +400,7 @@ def test_the_predictor_keeps_the_reading_of_the_crop_or_of_its_mirror_image(scen
         direct, mirrored = network(proxy), unmirror_output(network(mirror_proxy(proxy)))
     torch.testing.assert_close(read_once.F, direct.F[0], rtol=0, atol=0)
     kept = mirrored if read_twice.mirror_read else direct
-    assert read_twice.mirror_read == bool(twice.network.last_mirrored[0])
+    assert read_twice.mirror_read == bool(twice.reading.network.last_mirrored[0])
     torch.testing.assert_close(read_twice.F, kept.F[0], rtol=1e-5, atol=1e-4)
     torch.testing.assert_close(read_twice.camera, kept.camera[0], rtol=1e-5, atol=1e-6)
     # The evidence posterior records which reading its fit started from.

@@ -152,11 +152,11 @@ def test_dropping_the_segmentation_head_keeps_the_other_outputs() -> None:
         LANDMARK_MODEL,
         SEGMENTATION_OUTPUT,
         TfliteModel,
+        blazepose_model_path,
         drop_output,
-        shipped_model_path,
     )
 
-    content = shipped_model_path(LANDMARK_MODEL).read_bytes()
+    content = blazepose_model_path(LANDMARK_MODEL).read_bytes()
     full, pruned = TfliteModel(content), TfliteModel(drop_output(content, SEGMENTATION_OUTPUT))
     image = np.random.default_rng(1).random((256, 256, 3), dtype=np.float32)
     everything, fewer = full(image), pruned(image)

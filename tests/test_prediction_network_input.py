@@ -69,6 +69,8 @@ def test_the_detector_sees_the_unpainted_photo_and_occluded_keypoints_are_not_ev
     assert not prepared.image.pixels[300:, 200:450].any()
     hidden = keypoints[:, 1] >= 299.5
     np.testing.assert_array_equal(prepared.confidences == 0, hidden)
+    np.testing.assert_array_equal(prepared.evidence, ~hidden)  # carried, not read back
+    np.testing.assert_array_equal(prepared.occluders.boxes, [occluder])
     np.testing.assert_array_equal(prepared.detection.confidences, 0.95)  # raw result untouched
 
     assert tuple(prepared.proxy.shape) == (18, 256, 256)

@@ -1,11 +1,12 @@
-"""apply_occluders: slicing semantics, clipping, original-photo coordinates, validation."""
+"""Occluders and apply_occluders: slicing semantics, clipping, original-photo coordinates,
+validation once at the boundary."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from hkpd.prediction import apply_occluders, load_image
+from hkpd.prediction import Occluders, apply_occluders, load_image, points_under_boxes
 
 
 def grey_image(height: int = 60, width: int = 80) -> np.ndarray:
@@ -61,3 +62,23 @@ def test_invalid_boxes_raise_clear_errors() -> None:
     with pytest.raises(ValueError, match="finite"):
         apply_occluders(image, [(1, 2, np.nan, 4)])
     np.testing.assert_array_equal(apply_occluders(image, []), image)
+
+
+def test_occluders_are_checked_once_and_read_only_then_passed_on_as_they_are() -> None:
+    occluders = Occluders.of([(10, 5, 30, 25), (40, 40, 41.5, 45)])
+    assert len(occluders) == 2 and occluders.boxes.dtype == np.float64
+    assert Occluders.of(occluders) is occluders
+    assert len(Occluders.of(None)) == 0 and len(Occluders.of([])) == 0
+    with pytest.raises(ValueError):
+        occluders.boxes[0, 0] = 0.0
+    with pytest.raises(ValueError, match="x1 > x0"):
+        Occluders.of([(30, 10, 20, 40)])
+    with pytest.raises(ValueError, match="wrap a single box"):
+        Occluders.of((1, 2, 3, 4))  # type: ignore[arg-type]
+    points = np.array([[10.0, 5.0], [29.4, 24.4], [29.6, 10.0], [41.0, 44.0], [9.4, 6.0]])
+    np.testing.assert_array_equal(occluders.covers(points), [True, True, False, True, False])
+    np.testing.assert_array_equal(points_under_boxes(points, occluders.boxes),
+                                  occluders.covers(points))  # fmt: skip
+    painted = apply_occluders(grey_image(), occluders)
+    np.testing.assert_array_equal(painted, apply_occluders(grey_image(), occluders.boxes))
+    assert not painted[5:25, 10:30].any() and painted[5:25, 30].all()

@@ -13,12 +13,19 @@ from hkpd.body import BodyModel
 from hkpd.distributions import BodyDistribution
 from hkpd.network import DistributionNetwork, NetworkConfig
 from hkpd.prediction.network_lean import mode_torso_tilts
-from hkpd.prediction.upright_reading import UprightReader
+from hkpd.prediction.proxy_reading import ProxyReader
+from hkpd.prediction.readings import ReadingConfig
 from hkpd.prediction.upright_view import UprightView, torso_tilt
 from hkpd.proxy import assemble_proxy
 from hkpd.proxy.heatmaps import heatmap_peaks, joint_heatmaps
 
 SIZE = 64
+
+
+def upright_reader(network: torch.nn.Module, **settings: object) -> ProxyReader:
+    """The reading stage without the mirror reading: upright copies and the lean search."""
+    return ProxyReader(network, ReadingConfig(mirror=False, **settings))
+
 
 STANDING = np.array(
     [[32, 10], [31, 9], [33, 9], [30, 10], [34, 10],  # head
@@ -110,7 +117,7 @@ def test_the_upright_copy_frames_only_the_joints_that_are_there() -> None:
 
 def test_the_reader_turns_leaning_people_upright_and_maps_the_answer_back() -> None:
     network = RecordingNetwork()
-    reader = UprightReader(network)
+    reader = upright_reader(network)
     output = reader(proxies_of(STANDING, turned(STANDING, 100.0)))
     shown = network.seen[-1]
     assert math.isnan(reader.last_tilts_degrees[0])
@@ -129,7 +136,7 @@ def test_the_reader_turns_leaning_people_upright_and_maps_the_answer_back() -> N
 
 def test_the_reader_frames_its_copies_on_the_crops_keypoints_when_given() -> None:
     network = RecordingNetwork()
-    reader = UprightReader(network)
+    reader = upright_reader(network)
     lying = turned(STANDING, 100.0)
     present = torch.ones(1, 17, dtype=torch.bool)
     present[0, [0, 1, 2, 3, 4, 15, 16]] = False  # no face, no ankles in the heatmaps
@@ -162,11 +169,11 @@ def test_the_reader_is_the_network_itself_for_upright_people() -> None:
     network = DistributionNetwork(NetworkConfig(backbone_base_width=8, image_size=SIZE)).eval()
     proxy = proxies_of(STANDING, turned(STANDING, 15.0))
     with torch.no_grad():
-        direct, read = network(proxy), UprightReader(network)(proxy)
-    for name in ("F", "shape_mean", "global_orient", "camera"):
-        torch.testing.assert_close(getattr(read, name), getattr(direct, name), rtol=0, atol=0)
-    with pytest.raises(ValueError, match="threshold_degrees"):
-        UprightReader(network, threshold_degrees=-1.0)
+        direct, read = network(proxy), upright_reader(network)(proxy)
+    for mine, theirs in zip(read.tensors(), direct.tensors(), strict=True):
+        torch.testing.assert_close(mine, theirs, rtol=0, atol=0)
+    with pytest.raises(ValueError, match="upright_start_degrees"):
+        ReadingConfig(upright_start_degrees=-1.0)
 
 
 LIMBS_ONLY = torch.zeros(1, 17, dtype=torch.bool)
@@ -192,7 +199,7 @@ def test_without_a_torso_the_reader_turns_people_by_the_lean_that_fits_what_is_s
     lying = turned(STANDING, 110.0)
     proxy = proxies_of(STANDING, lying, present=LIMBS_ONLY.expand(2, 17))
     network = LimbLeanNetwork(SIZE, reads_within_degrees=40.0)  # reads lying people as upright
-    reader = UprightReader(network)
+    reader = upright_reader(network)
     output = reader(proxy)
     # The lying person is turned by a lean that shows them within the network's range, and
     # read right there; whichever copy is read, both answers come back as the people lie.
@@ -205,6 +212,6 @@ def test_without_a_torso_the_reader_turns_people_by_the_lean_that_fits_what_is_s
     # Read as it is, the same network answers upright: a body 110 degrees off.
     direct = network(proxy)
     assert (direct.global_orient[1] - rolled_frontal(110.0)).abs().max() > 0.5
-    as_read = UprightReader(LimbLeanNetwork(SIZE), lean_from_network=False)
+    as_read = upright_reader(LimbLeanNetwork(SIZE), lean_search=False)
     as_read(proxy)
     assert np.isnan(as_read.last_tilts_degrees).all()

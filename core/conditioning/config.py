@@ -27,8 +27,6 @@ class EvidenceConfig:
             extent, so 0.03 is about 3.6 % of the person's height).
         robust_scale: the Cauchy loss turns from quadratic to logarithmic at this many sigmas,
             so a keypoint the detector put on the wrong limb pulls only weakly.
-        min_confidence: detector confidence from which a keypoint counts as evidence (the proxy
-            heatmaps' threshold).
         min_keypoints: with fewer evidence keypoints the fit is not attempted (the network's
             own distribution is returned, with the reason).
         global_rotation_sigma: radians; weak prior that keeps the global rotation near its
@@ -37,8 +35,6 @@ class EvidenceConfig:
             start's.
         max_iterations: Levenberg-Marquardt iterations at most.
         tolerance: stop when an accepted step lowers the cost by less than this fraction.
-        upright_start_degrees: when the detected torso leans more than this from upright, the
-            network is also run on the crop rotated upright, and the fit starts from both.
         joint_spread: ``"conditional"`` (the default) gives each joint its precision given the
             other joints (the diagonal blocks of the posterior precision: the best independent
             approximation in the mode-seeking sense, every sample consistent with the evidence);
@@ -50,13 +46,11 @@ class EvidenceConfig:
     prior_weight: float = 0.5
     keypoint_sigma: float = 0.03
     robust_scale: float = 3.0
-    min_confidence: float = 0.6
     min_keypoints: int = 4
     global_rotation_sigma: float = 0.5
     camera_sigma: float = 0.5
     max_iterations: int = 30
     tolerance: float = 1e-6
-    upright_start_degrees: float = 30.0
     joint_spread: str = "conditional"
 
     def __post_init__(self) -> None:
@@ -71,10 +65,6 @@ class EvidenceConfig:
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"EvidenceConfig.{name} must be a positive number, got {value}")
-        if not 0.0 <= self.min_confidence <= 1.0:
-            raise ValueError(
-                f"EvidenceConfig.min_confidence must lie in [0, 1], got {self.min_confidence}"
-            )
         if self.joint_spread not in ("marginal", "conditional"):
             raise ValueError(
                 f"EvidenceConfig.joint_spread must be 'marginal' or 'conditional', got "

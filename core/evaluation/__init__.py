@@ -1,6 +1,10 @@
 """Evaluation: the metrics (MPJPE variants, PVE-T-SC, 2D errors, min-of-N, sample diversity) and
 the `hkpd-eval` command.
 
+Experiments build on :mod:`hkpd.evaluation.test_set` (a checkpoint's network and the fixed
+synthetic test set) and read the network through :class:`hkpd.prediction.proxy_reading.
+ProxyReader`, as ``hkpd-eval`` does.
+
 Metric functions return per-example values: metres for 3D metrics (times
 :data:`MILLIMETRES_PER_METRE` for the paper's tables), pixels for 2D errors.
 """

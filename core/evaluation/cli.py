@@ -27,7 +27,6 @@ import argparse
 import os
 import sys
 import tempfile
-from dataclasses import replace
 from pathlib import Path
 
 import torch
@@ -42,7 +41,6 @@ SYNTHETIC_COLUMNS = [
     "joint_error_2d_mode",
     "joint_error_2d_samples",
 ]
-TEST_SET_SEED = 2021
 EVIDENCE_COLUMNS = [
     "joint_error_2d_mode",
     "joint_error_2d_samples",
@@ -56,15 +54,25 @@ EVIDENCE_COLUMNS = [
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="hkpd-eval", description=__doc__.split("\n\n")[0])
+    _add_synthetic_arguments(parser)
+    _add_reading_arguments(parser)
+    _add_photo_arguments(parser)
+    parser.add_argument("--device", default="auto")
+    parser.add_argument("--out", type=Path, help="also write the markdown report here")
+    parser.add_argument(
+        "--figure",
+        type=Path,
+        help="also draw the synthetic 2D errors (mode vs samples per checkpoint) into this PNG",
+    )
+    return parser
+
+
+def _add_synthetic_arguments(parser: argparse.ArgumentParser) -> None:
+    """The checkpoints and the synthetic evaluations' arguments."""
     parser.add_argument("checkpoints", nargs="+", type=Path, help="checkpoints to evaluate")
     parser.add_argument("--poses", type=Path, help="pose bank (its test split); else procedural")
     parser.add_argument("--count", type=int, default=1000, help="synthetic test examples")
     parser.add_argument("--samples", type=int, default=25, help="samples per example")
-    parser.add_argument("--coco", type=Path, help="folder with annotations/ and photos (COCO)")
-    parser.add_argument(
-        "--coco-split",
-        help="only the photos of this split (e.g. val2017, when train2017 was used for tuning)",
-    )
     parser.add_argument(
         "--occlusion-cases",
         type=int,
@@ -81,6 +89,19 @@ def build_parser() -> argparse.ArgumentParser:
         "(post-hoc temperature: < 1 widens the pose distributions, > 1 sharpens them; "
         "synthetic and occlusion evaluations only; default 1, as trained)",
     )
+    parser.add_argument(
+        "--multi-view-shape",
+        type=int,
+        default=0,
+        metavar="BODIES",
+        help="also score shape from 1-5 photos of one person on this many synthetic bodies "
+        "(5 renders each: single image, mean and probabilistic combination; e.g. 100)",
+    )
+    parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
+
+
+def _add_reading_arguments(parser: argparse.ArgumentParser) -> None:
+    """Which posteriors and readings are scored."""
     parser.add_argument(
         "--evidence",
         action="store_true",
@@ -108,6 +129,15 @@ def build_parser() -> argparse.ArgumentParser:
         "mirrored, keeping the reading whose body fits the shown keypoints better; the plain "
         "synthetic and occlusion rows always read the network once, as the paper does)",
     )
+
+
+def _add_photo_arguments(parser: argparse.ArgumentParser) -> None:
+    """The real-photo evaluations' arguments."""
+    parser.add_argument("--coco", type=Path, help="folder with annotations/ and photos (COCO)")
+    parser.add_argument(
+        "--coco-split",
+        help="only the photos of this split (e.g. val2017, when train2017 was used for tuning)",
+    )
     parser.add_argument(
         "--coco-turns",
         action="store_true",
@@ -121,46 +151,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --coco: also measure BlazePose against the human keypoints (jitter, misses, "
         "swaps, outliers; the numbers behind the detector-like noise)",
     )
-    parser.add_argument(
-        "--multi-view-shape",
-        type=int,
-        default=0,
-        metavar="BODIES",
-        help="also score shape from 1-5 photos of one person on this many synthetic bodies "
-        "(5 renders each: single image, mean and probabilistic combination; e.g. 100)",
-    )
-    parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
-    parser.add_argument("--device", default="auto")
-    parser.add_argument("--out", type=Path, help="also write the markdown report here")
-    parser.add_argument(
-        "--figure",
-        type=Path,
-        help="also draw the synthetic 2D errors (mode vs samples per checkpoint) into this PNG",
-    )
-    return parser
-
-
-def _network_and_test_generator(
-    checkpoint: Path, poses: Path | None, device, augmentation=None, orientation=None
-) -> tuple:
-    """The checkpoint's network and a generator of test-split examples at its input size
-    (upright people unless ``orientation`` says otherwise)."""
-    from hkpd.body import BodyModel
-    from hkpd.network.checkpoint import load_network
-    from hkpd.poses import pose_source
-    from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
-
-    network, _ = load_network(checkpoint, device)
-    config = SyntheticDataConfig(
-        image_size=int(network.config.image_size), image_proxy=network.config.image_proxy
-    )
-    if augmentation is not None:
-        config = replace(config, augmentation=augmentation)
-    if orientation is not None:
-        config = replace(config, orientation=orientation)
-    body = BodyModel().to(device)
-    generator = SyntheticDataGenerator(pose_source(poses, "test"), config, device, body=body)
-    return network, generator
 
 
 def evaluate_synthetic(
@@ -178,22 +168,21 @@ def evaluate_synthetic(
     optionally with its F scaled (:mod:`hkpd.evaluation.concentration_scaling`) or on the
     any-orientation split (``orientation``, e.g.
     :data:`hkpd.synthesis.orientation.ANY_ORIENTATION`), optionally reading leaning people from
-    an upright copy (:class:`hkpd.prediction.upright_reading.UprightReader`) and reading every
-    view mirrored too (:class:`hkpd.prediction.mirror_reading.MirrorChoosingReader`)."""
+    an upright copy and reading every view mirrored too (the reading stage:
+    :class:`hkpd.prediction.proxy_reading.ProxyReader`)."""
     from hkpd.evaluation.synthetic import evaluate_batches
-    from hkpd.prediction.mirror_reading import MirrorChoosingReader
-    from hkpd.prediction.upright_reading import UprightReader
-    from hkpd.synthesis.generator import iter_fixed_test_set
+    from hkpd.evaluation.test_set import fixed_batches, network_and_generator
+    from hkpd.prediction.proxy_reading import ProxyReader
+    from hkpd.prediction.readings import ReadingConfig
 
-    network, generator = _network_and_test_generator(
-        checkpoint, poses, device, orientation=orientation
+    network, generator = network_and_generator(checkpoint, poses, device, orientation=orientation)
+    network = ProxyReader(
+        ConcentrationScaled(network, concentration_scale),
+        ReadingConfig(mirror=mirror_reading),
+        upright=upright_reading,  # its copies framed like the test crops, on all 17 keypoints
+        body=generator.body,
     )
-    network = ConcentrationScaled(network, concentration_scale)
-    if mirror_reading:
-        network = MirrorChoosingReader(network, body=generator.body)
-    if upright_reading:  # its copies framed like the test crops, on all 17 keypoints
-        network = UprightReader(network, body=generator.body)
-    batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
+    batches = fixed_batches(generator, count)
     size = generator.config.image_size
     metrics = evaluate_batches(
         network, batches, generator.body, samples, pass_crop_keypoints=upright_reading
@@ -283,108 +272,130 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
     """Run the requested evaluations and return the markdown report."""
     report = []
     if not arguments.no_synthetic:
-        rows = {
-            _row_name(checkpoint, factor, arguments.concentration_scale): evaluate_synthetic(
-                checkpoint, arguments.poses, arguments.count, arguments.samples, device, factor
-            )
-            for checkpoint in arguments.checkpoints
-            for factor in arguments.concentration_scale
-        }
-        from hkpd.synthesis.orientation import ANY_ORIENTATION
-
-        splits = {"": None} | ({" (any orientation)": ANY_ORIENTATION}
-                               if arguments.any_orientation else {})  # fmt: skip
-        readings = [False, True] if arguments.upright_reading else [False]
-        for checkpoint in arguments.checkpoints:
-            for split, orientation in splits.items():
-                for upright in readings:
-                    if not split and not upright:
-                        continue  # the rows above
-                    mirror = upright and not arguments.no_mirror_reading
-                    reading = " (upright + mirror reading)" if mirror else " (upright reading)"
-                    name = f"{checkpoint}{split}" + (reading if upright else "")
-                    rows[name] = evaluate_synthetic(
-                        checkpoint, arguments.poses, arguments.count, arguments.samples,
-                        device, orientation=orientation, upright_reading=upright,
-                        mirror_reading=mirror,
-                    )  # fmt: skip
-        source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
-        report.append(
-            f"### Synthetic test set: {arguments.count} examples, {source}, seed "
-            f"{TEST_SET_SEED}\n\n" + markdown_table(rows, SYNTHETIC_COLUMNS)
-        )
-        every = sorted(
-            {key for row in rows.values() for key in row} - {"image_size"}, key=_metric_order
-        )
-        report.append("All synthetic metrics:\n\n" + markdown_table(rows, every))
-        if arguments.figure is not None:
-            from hkpd.evaluation.figures import plot_2d_errors
-
-            plot_2d_errors(rows, arguments.figure)
+        report += _synthetic_report(arguments, device)
         if arguments.evidence:
-            rows = {}
-            mirror, read = _mirror_reading(arguments)
-            for checkpoint in arguments.checkpoints:
-                both = evaluate_evidence_synthetic(
-                    checkpoint, arguments.poses, arguments.count, arguments.samples, device,
-                    mirror_reading=mirror,
-                )  # fmt: skip
-                rows[f"{checkpoint} (network only{read})"] = both["network"]
-                rows[f"{checkpoint} (2D evidence{read})"] = both["evidence"]
-            report.append(
-                "### Synthetic test set with detector-like keypoint noise: network vs 2D "
-                "evidence (calibrated coverage 0.50 / "
-                f"{0.885 if arguments.samples == 25 else 0.9})\n\n"
-                + markdown_table(rows, EVIDENCE_COLUMNS)
-            )
+            report.append(_evidence_synthetic_report(arguments, device))
     if arguments.coco is not None:
-        from hkpd.evaluation.real_photos import load_coco_people
-
-        people = load_coco_people(arguments.coco)
-        if arguments.coco_split:
-            people = [p for p in people if p.image_path.parent.name == arguments.coco_split]
-            if not people:
-                raise SystemExit(f"hkpd-eval: error: no annotated people in split "
-                                 f"{arguments.coco_split!r} of {arguments.coco}")  # fmt: skip
-        with tempfile.TemporaryDirectory(prefix="hkpd_turned_") as folder:
-            turned = _turned_people(people, Path(folder)) if arguments.coco_turns else {}
-            rows, occlusion_rows = _photo_rows(arguments, people, turned, device)
-        if arguments.detector_errors:
-            report.append(_detector_error_table(load_coco_people(arguments.coco, 6), arguments))
-        columns = list(next(iter(rows.values())))
-        report.append(
-            f"### Real photos: {arguments.coco} ({len(people)} people with >= 12 visible "
-            "keypoints; 2D errors on visible keypoints)\n\n" + markdown_table(rows, columns)
-        )
-        if occlusion_rows:
-            report.append(
-                "### Occlusion response on the photos: a box around one annotated forearm or "
-                "lower leg\n\n"
-                + markdown_table(occlusion_rows, list(next(iter(occlusion_rows.values()))))
-            )
+        report += _photo_report(arguments, device)
     if arguments.occlusion_cases > 0:
-        rows = {
-            _row_name(checkpoint, factor, arguments.concentration_scale): occlusion_summary(
-                checkpoint, arguments.poses, arguments.occlusion_cases, device, factor
-            )
-            for checkpoint in arguments.checkpoints
-            for factor in arguments.concentration_scale
-        }
-        if arguments.evidence:
-            mirror, read = _mirror_reading(arguments)
-            for checkpoint in arguments.checkpoints:
-                rows[f"{checkpoint} (2D evidence{read})"] = occlusion_summary(
-                    checkpoint, arguments.poses, arguments.occlusion_cases, device,
-                    evidence=True, mirror_reading=mirror,
-                )  # fmt: skip
-        report.append(
-            f"### Occlusion response: {arguments.occlusion_cases} synthetic test images, one "
-            "forearm or lower leg covered by a black box\n\n"
-            + markdown_table(rows, list(next(iter(rows.values()))))
-        )
+        report.append(_occlusion_report(arguments, device))
     if arguments.multi_view_shape > 0:
         report.append(_multi_view_shape_report(arguments, device))
     return "\n".join(report)
+
+
+def _synthetic_report(arguments: argparse.Namespace, device: torch.device) -> list[str]:
+    """The synthetic tables: every checkpoint (and concentration scale), split and reading."""
+    from hkpd.evaluation.test_set import TEST_SET_SEED
+    from hkpd.synthesis.orientation import ANY_ORIENTATION
+
+    rows = {
+        _row_name(checkpoint, factor, arguments.concentration_scale): evaluate_synthetic(
+            checkpoint, arguments.poses, arguments.count, arguments.samples, device, factor
+        )
+        for checkpoint in arguments.checkpoints
+        for factor in arguments.concentration_scale
+    }
+    splits = {"": None} | ({" (any orientation)": ANY_ORIENTATION}
+                           if arguments.any_orientation else {})  # fmt: skip
+    readings = [False, True] if arguments.upright_reading else [False]
+    for checkpoint in arguments.checkpoints:
+        for split, orientation in splits.items():
+            for upright in readings:
+                if not split and not upright:
+                    continue  # the rows above
+                mirror = upright and not arguments.no_mirror_reading
+                reading = " (upright + mirror reading)" if mirror else " (upright reading)"
+                name = f"{checkpoint}{split}" + (reading if upright else "")
+                rows[name] = evaluate_synthetic(
+                    checkpoint, arguments.poses, arguments.count, arguments.samples,
+                    device, orientation=orientation, upright_reading=upright,
+                    mirror_reading=mirror,
+                )  # fmt: skip
+    source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
+    every = sorted(
+        {key for row in rows.values() for key in row} - {"image_size"}, key=_metric_order
+    )
+    if arguments.figure is not None:
+        from hkpd.evaluation.figures import plot_2d_errors
+
+        plot_2d_errors(rows, arguments.figure)
+    return [
+        f"### Synthetic test set: {arguments.count} examples, {source}, seed "
+        f"{TEST_SET_SEED}\n\n" + markdown_table(rows, SYNTHETIC_COLUMNS),
+        "All synthetic metrics:\n\n" + markdown_table(rows, every),
+    ]
+
+
+def _evidence_synthetic_report(arguments: argparse.Namespace, device: torch.device) -> str:
+    """The network-vs-evidence table on the synthetic test set with detector-like noise."""
+    rows = {}
+    mirror, read = _mirror_reading(arguments)
+    for checkpoint in arguments.checkpoints:
+        both = evaluate_evidence_synthetic(
+            checkpoint, arguments.poses, arguments.count, arguments.samples, device,
+            mirror_reading=mirror,
+        )  # fmt: skip
+        rows[f"{checkpoint} (network only{read})"] = both["network"]
+        rows[f"{checkpoint} (2D evidence{read})"] = both["evidence"]
+    return (
+        "### Synthetic test set with detector-like keypoint noise: network vs 2D "
+        "evidence (calibrated coverage 0.50 / "
+        f"{0.885 if arguments.samples == 25 else 0.9})\n\n" + markdown_table(rows, EVIDENCE_COLUMNS)
+    )
+
+
+def _photo_report(arguments: argparse.Namespace, device: torch.device) -> list[str]:
+    """The real-photo tables (and the detector's errors, the photos' occlusion response)."""
+    from hkpd.evaluation.real_photos import load_coco_people
+
+    people = load_coco_people(arguments.coco)
+    if arguments.coco_split:
+        people = [p for p in people if p.image_path.parent.name == arguments.coco_split]
+        if not people:
+            raise SystemExit(f"hkpd-eval: error: no annotated people in split "
+                             f"{arguments.coco_split!r} of {arguments.coco}")  # fmt: skip
+    with tempfile.TemporaryDirectory(prefix="hkpd_turned_") as folder:
+        turned = _turned_people(people, Path(folder)) if arguments.coco_turns else {}
+        rows, occlusion_rows = _photo_rows(arguments, people, turned, device)
+    report = []
+    if arguments.detector_errors:
+        report.append(_detector_error_table(load_coco_people(arguments.coco, 6), arguments))
+    columns = list(next(iter(rows.values())))
+    report.append(
+        f"### Real photos: {arguments.coco} ({len(people)} people with >= 12 visible "
+        "keypoints; 2D errors on visible keypoints)\n\n" + markdown_table(rows, columns)
+    )
+    if occlusion_rows:
+        report.append(
+            "### Occlusion response on the photos: a box around one annotated forearm or "
+            "lower leg\n\n"
+            + markdown_table(occlusion_rows, list(next(iter(occlusion_rows.values()))))
+        )
+    return report
+
+
+def _occlusion_report(arguments: argparse.Namespace, device: torch.device) -> str:
+    """The synthetic occlusion-response table of every checkpoint (and evidence posterior)."""
+    rows = {
+        _row_name(checkpoint, factor, arguments.concentration_scale): occlusion_summary(
+            checkpoint, arguments.poses, arguments.occlusion_cases, device, factor
+        )
+        for checkpoint in arguments.checkpoints
+        for factor in arguments.concentration_scale
+    }
+    if arguments.evidence:
+        mirror, read = _mirror_reading(arguments)
+        for checkpoint in arguments.checkpoints:
+            rows[f"{checkpoint} (2D evidence{read})"] = occlusion_summary(
+                checkpoint, arguments.poses, arguments.occlusion_cases, device,
+                evidence=True, mirror_reading=mirror,
+            )  # fmt: skip
+    return (
+        f"### Occlusion response: {arguments.occlusion_cases} synthetic test images, one "
+        "forearm or lower leg covered by a black box\n\n"
+        + markdown_table(rows, list(next(iter(rows.values()))))
+    )
 
 
 def _mirror_reading(arguments: argparse.Namespace) -> tuple[bool, str]:
@@ -400,11 +411,14 @@ def _photo_rows(
     ``people`` and on the ``turned`` copies of them."""
     from hkpd.evaluation.real_photos import evaluate_photos
     from hkpd.prediction.predictor import Predictor
+    from hkpd.prediction.readings import ReadingConfig
 
     rows, occlusion_rows = {}, {}
     mirror, read = _mirror_reading(arguments)
     for checkpoint in arguments.checkpoints:
-        predictor = Predictor.from_pretrained(checkpoint, device=str(device), mirror_reading=mirror)
+        predictor = Predictor.from_pretrained(
+            checkpoint, device=str(device), reading_config=ReadingConfig(mirror=mirror)
+        )
         if not arguments.evidence:
             rows[f"{checkpoint} (as cropped{read})"] = evaluate_photos(predictor, people)
             if arguments.upright_reading or turned:
@@ -442,10 +456,11 @@ def _turned_people(people: list, folder: Path) -> dict[int, list]:
 def _multi_view_shape_report(arguments: argparse.Namespace, device: torch.device) -> str:
     """The multi-photo shape table of every checkpoint (:mod:`hkpd.evaluation.multi_view_shape`)."""
     from hkpd.evaluation import multi_view_shape as multi
+    from hkpd.evaluation.test_set import network_and_generator
 
     parts = []
     for checkpoint in arguments.checkpoints:
-        network, generator = _network_and_test_generator(checkpoint, arguments.poses, device)
+        network, generator = network_and_generator(checkpoint, arguments.poses, device)
         predictions = multi.predict_multi_view_shapes(
             network.eval(), generator, arguments.multi_view_shape, views=5
         )
@@ -509,24 +524,30 @@ def occlusion_summary(
     optionally the network reading every view mirrored too, as the predictor does:
     :class:`hkpd.prediction.mirror_reading.MirrorChoosingReader`)."""
     from hkpd.evaluation.occlusion_response import occlusion_response, summarise
-    from hkpd.prediction.mirror_reading import MirrorChoosingReader
+    from hkpd.evaluation.test_set import network_and_generator
+    from hkpd.prediction.proxy_reading import ProxyReader
+    from hkpd.prediction.readings import ReadingConfig
     from hkpd.synthesis.augmentations import AugmentationConfig
 
-    network, generator = _network_and_test_generator(
-        checkpoint, poses, device, AugmentationConfig.disabled()
+    network, generator = network_and_generator(
+        checkpoint, poses, device, augmentation=AugmentationConfig.disabled()
     )
     if network.config.image_proxy != "edges":
         raise ValueError(
             f"--occlusion-cases covers limbs in edge images; {checkpoint} reads "
             f"{network.config.image_proxy!r} (evaluate it without --occlusion-cases)"
         )
-    scaled = ConcentrationScaled(network, concentration_scale)
-    if mirror_reading:
-        scaled = MirrorChoosingReader(scaled, body=generator.body)
+    scaled = ProxyReader(
+        ConcentrationScaled(network, concentration_scale),
+        ReadingConfig(mirror=mirror_reading),
+        upright=False,
+        body=generator.body,
+    )
     condition = None
     if evidence:
         from hkpd.conditioning import EvidenceConfig
-        from hkpd.evaluation.evidence_synthetic import condition_batch, float64_body
+        from hkpd.evaluation.evidence_synthetic import condition_batch
+        from hkpd.prediction.predictor import float64_body
 
         body64, config = float64_body(generator.body), EvidenceConfig()
         size = generator.config.image_size
@@ -549,14 +570,16 @@ def evaluate_evidence_synthetic(
     keypoint noise (:func:`hkpd.evaluation.evidence_synthetic.evaluate_evidence_batches`),
     optionally with the network reading every view mirrored too (the predictor's default)."""
     from hkpd.evaluation.evidence_synthetic import evaluate_evidence_batches
-    from hkpd.prediction.mirror_reading import MirrorChoosingReader
-    from hkpd.synthesis.generator import iter_fixed_test_set
+    from hkpd.evaluation.test_set import fixed_batches, network_and_generator
+    from hkpd.prediction.proxy_reading import ProxyReader
+    from hkpd.prediction.readings import ReadingConfig
 
-    network, generator = _network_and_test_generator(checkpoint, poses, device)
-    if mirror_reading:
-        network = MirrorChoosingReader(network, body=generator.body)
-    batches = iter_fixed_test_set(generator, count, TEST_SET_SEED, 50)
-    return evaluate_evidence_batches(network, batches, generator.body, num_samples=samples)
+    network, generator = network_and_generator(checkpoint, poses, device)
+    reader = ProxyReader(
+        network, ReadingConfig(mirror=mirror_reading), upright=False, body=generator.body
+    )
+    batches = fixed_batches(generator, count)
+    return evaluate_evidence_batches(reader, batches, generator.body, num_samples=samples)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,6 @@ posteriors identically. Examples whose fit falls back score the network's poster
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Iterable
 
 import torch
@@ -20,6 +19,7 @@ from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.metrics import MILLIMETRES_PER_METRE
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
+from hkpd.prediction.predictor import float64_body
 from hkpd.synthesis.batch import TrainingBatch
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
 
@@ -38,27 +38,18 @@ def condition_batch(
         The conditioned output (same dtype and device as ``output``) and ``(B,)`` bool, which
         examples were conditioned.
     """
-    fields = {
-        name: getattr(output, name).clone()
-        for name in ("F", "shape_mean", "shape_std", "global_orient", "camera")
-    }
+    conditioned = output.map(torch.clone)
     succeeded = torch.zeros(output.batch_size, dtype=torch.bool)
     for item in range(output.batch_size):
-        start = BodyDistribution(
-            *(
-                fields[name][item : item + 1].detach().cpu()
-                for name in ("F", "shape_mean", "shape_std", "global_orient", "camera")
-            )
-        )
+        start = output.rows(slice(item, item + 1)).detach().to("cpu")
         evidence = KeypointEvidence(detected[item].cpu(), reported[item].cpu(), crop_size)
         fit = condition_on_keypoints(body64, start, evidence, config)
         if fit.conditioned is None:
             continue
         succeeded[item] = True
-        for name in fields:
-            value = getattr(fit.conditioned, name)
-            fields[name][item] = value.to(fields[name].dtype)
-    return BodyDistribution(**fields), succeeded
+        for mine, fitted in zip(conditioned.tensors(), fit.conditioned.tensors(), strict=True):
+            mine[item] = fitted.to(mine.dtype)
+    return conditioned, succeeded
 
 
 @torch.no_grad()
@@ -119,8 +110,3 @@ def _in_reported_units(metric: str, values: torch.Tensor, size: int) -> torch.Te
     if metric.startswith(("mpjpe", "pve_t_sc", "diversity")):
         return values * MILLIMETRES_PER_METRE
     return values
-
-
-def float64_body(body: BodyModel) -> BodyModel:
-    """A float64 CPU copy of ``body`` for the keypoint fit."""
-    return copy.deepcopy(body).cpu().double()

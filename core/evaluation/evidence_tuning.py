@@ -228,17 +228,10 @@ def run_tuning(arguments: argparse.Namespace, configs: list[EvidenceConfig]) -> 
     """The markdown tuning table of every setting (and the network's own, first)."""
     from tqdm import tqdm
 
-    from hkpd.body import BodyModel
     from hkpd.devices import resolve_device
     from hkpd.evaluation.real_photos import load_coco_people
-    from hkpd.network.checkpoint import load_network
-    from hkpd.poses import pose_source
+    from hkpd.evaluation.test_set import fixed_batches, network_and_generator
     from hkpd.prediction.predictor import Predictor
-    from hkpd.synthesis.generator import (
-        SyntheticDataConfig,
-        SyntheticDataGenerator,
-        iter_fixed_test_set,
-    )
 
     people = load_coco_people(arguments.coco)
     if arguments.coco_split:
@@ -249,16 +242,11 @@ def run_tuning(arguments: argparse.Namespace, configs: list[EvidenceConfig]) -> 
             + (f", split {arguments.coco_split!r}" if arguments.coco_split else "")
         )
     device = resolve_device(arguments.device)
-    network, _ = load_network(arguments.checkpoint, device)
-    network.eval()
-    body = BodyModel().to(device)
-    config = SyntheticDataConfig(
-        image_size=int(network.config.image_size), image_proxy=network.config.image_proxy
+    network, generator = network_and_generator(
+        arguments.checkpoint, arguments.poses, device, split="val"
     )
-    generator = SyntheticDataGenerator(
-        pose_source(arguments.poses, "val"), config, device, body=body
-    )
-    batches = list(iter_fixed_test_set(generator, arguments.count, VALIDATION_SET_SEED, 50))
+    body = generator.body
+    batches = list(fixed_batches(generator, arguments.count, VALIDATION_SET_SEED))
     predictor = Predictor(network, device, body=body)
     rows: dict[str, dict[str, float]] = {}
     settings: list[EvidenceConfig | None] = list(configs)

@@ -22,7 +22,7 @@ import torch
 from hkpd.body import BodyModel
 from hkpd.distributions import BodyDistribution
 from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS, SMPL_JOINT_NAMES
-from hkpd.prediction.occluders import apply_occluders, points_under_boxes
+from hkpd.prediction.occluders import Occluders, apply_occluders
 from hkpd.proxy import build_proxy_batch
 from hkpd.synthesis.generator import RenderedBatch, SyntheticDataGenerator, batch_seed
 from hkpd.uncertainty import vertex_uncertainty
@@ -84,8 +84,8 @@ def cover_limb(
     (y0, x0), (y1, x1) = pixels.amin(0).tolist(), pixels.amax(0).tolist()
     x0, y0 = max(0, x0 - margin), max(0, y0 - margin)
     x1, y1 = min(size, x1 + margin + 1), min(size, y1 + margin + 1)
-    box = [(x0, y0, x1, y1)]
-    under = points_under_boxes(rendered.input_keypoints[item].cpu().numpy(), box)
+    box = Occluders([(x0, y0, x1, y1)])
+    under = box.covers(rendered.input_keypoints[item].cpu().numpy())
     present = rendered.input_present[item].cpu() & ~torch.from_numpy(under)
     return apply_occluders(rendered.images[item], box), present
 

@@ -88,61 +88,34 @@ def evaluate_prediction(
     """
     if targets.keypoints2d is not None and targets.visible is None:
         raise ValueError("targets.keypoints2d needs targets.visible (use all-True if unknown)")
-    results: dict[str, torch.Tensor] = {}
     pose = output.pose_distribution()
     keypoints, joints = pelvis_relative_body(
         body, output.shape_mean, pose.mode, output.global_orient
     )
-    if targets.joints3d is not None:
-        results["mpjpe"] = mpjpe(joints, targets.joints3d)
-        results["mpjpe_sc"] = mpjpe_scale_corrected(joints, targets.joints3d)
-        results["mpjpe_pa"] = mpjpe_procrustes(joints, targets.joints3d)
-    target_tpose = None
-    if targets.betas is not None:
-        target_tpose = body.tpose(targets.betas)
-        results["pve_t_sc"] = pve_t_sc(body.tpose(output.shape_mean), target_tpose)
-
-    def to_pixels(points: torch.Tensor) -> torch.Tensor:
-        return ndc_to_pixels(weak_perspective_project(points, output.camera), crop_size)
-
-    if targets.keypoints2d is not None:
-        results["joint_error_2d_mode"] = joint_error_2d(
-            to_pixels(keypoints), targets.keypoints2d, targets.visible
-        )
+    projection = _Projection(output.camera, crop_size)
+    target_tpose = None if targets.betas is None else body.tpose(targets.betas)
+    results = _mode_metrics(output, body, targets, keypoints, joints, target_tpose, projection)
     if num_samples < 1:
         return results
-
     poses = pose.sample(num_samples, generator=generator)
     betas = output.sample_betas(num_samples, generator)
     if targets.body_pose is not None:
         for level, share in rotation_coverage(output.F, poses, targets.body_pose).items():
             results[f"pose_coverage_{round(level * 100)}"] = share
-    per_sample: dict[str, list[torch.Tensor]] = {"mpjpe": [], "mpjpe_pa": [], "pve_t_sc": []}
-    sample_keypoints = []
-    for index in range(num_samples):  # one sample per pass keeps the memory bounded
-        sample_kp, sample_joints = pelvis_relative_body(
-            body, betas[index], poses[index], output.global_orient
-        )
-        sample_keypoints.append(sample_kp)
-        if targets.joints3d is not None:
-            per_sample["mpjpe"].append(mpjpe(sample_joints, targets.joints3d))
-            per_sample["mpjpe_pa"].append(mpjpe_procrustes(sample_joints, targets.joints3d))
-        if target_tpose is not None:
-            per_sample["pve_t_sc"].append(pve_t_sc(body.tpose(betas[index]), target_tpose))
+    stacked, per_sample = _sample_bodies(output, body, targets, target_tpose, poses, betas)
     counts = [n for n in MIN_OF_N_COUNTS if n <= num_samples]
     for name, values in per_sample.items():
         if values:
             for n, value in min_of_n(torch.stack(values), counts).items():
                 results[f"{name}_min_of_{n}"] = value
-    stacked = torch.stack(sample_keypoints)  # (S, B, 17, 3)
     if targets.keypoints2d is not None:
         first = stacked[: min(SAMPLES_FOR_2D_ERROR, num_samples)]
-        projected = torch.stack([to_pixels(points) for points in first])
+        projected = torch.stack([projection(points) for points in first])
         results["joint_error_2d_samples"] = joint_error_2d(
             projected, targets.keypoints2d, targets.visible
         )
         results["joint_spread_2d_samples"] = joint_error_2d(
-            projected, to_pixels(keypoints), targets.visible
+            projected, projection(keypoints), targets.visible
         )
     visible = (
         targets.visible.bool()
@@ -153,3 +126,64 @@ def evaluate_prediction(
     results["diversity_visible"] = diversity["visible"]
     results["diversity_invisible"] = diversity["invisible"]
     return results
+
+
+@dataclass(frozen=True)
+class _Projection:
+    """Pelvis-relative camera-frame points ``(..., 17, 3)`` to crop pixels ``(..., 17, 2)``
+    through the predicted weak-perspective camera."""
+
+    camera: torch.Tensor
+    crop_size: int
+
+    def __call__(self, points: torch.Tensor) -> torch.Tensor:
+        return ndc_to_pixels(weak_perspective_project(points, self.camera), self.crop_size)
+
+
+def _mode_metrics(
+    output: BodyDistribution,
+    body: BodyModel,
+    targets: EvaluationTargets,
+    keypoints: torch.Tensor,
+    joints: torch.Tensor,
+    target_tpose: torch.Tensor | None,
+    projection: _Projection,
+) -> dict[str, torch.Tensor]:
+    """The mode body's metrics: MPJPE (plain, -SC, -PA), PVE-T-SC and the 2D mode error."""
+    results: dict[str, torch.Tensor] = {}
+    if targets.joints3d is not None:
+        results["mpjpe"] = mpjpe(joints, targets.joints3d)
+        results["mpjpe_sc"] = mpjpe_scale_corrected(joints, targets.joints3d)
+        results["mpjpe_pa"] = mpjpe_procrustes(joints, targets.joints3d)
+    if target_tpose is not None:
+        results["pve_t_sc"] = pve_t_sc(body.tpose(output.shape_mean), target_tpose)
+    if targets.keypoints2d is not None:
+        results["joint_error_2d_mode"] = joint_error_2d(
+            projection(keypoints), targets.keypoints2d, targets.visible
+        )
+    return results
+
+
+def _sample_bodies(
+    output: BodyDistribution,
+    body: BodyModel,
+    targets: EvaluationTargets,
+    target_tpose: torch.Tensor | None,
+    poses: torch.Tensor,
+    betas: torch.Tensor,
+) -> tuple[torch.Tensor, dict[str, list[torch.Tensor]]]:
+    """The sampled bodies' ``(S, B, 17, 3)`` keypoints and their per-sample 3D errors
+    (``mpjpe``, ``mpjpe_pa``, ``pve_t_sc``: S ``(B,)`` values each, where targets allow)."""
+    per_sample: dict[str, list[torch.Tensor]] = {"mpjpe": [], "mpjpe_pa": [], "pve_t_sc": []}
+    sample_keypoints = []
+    for index in range(poses.shape[0]):  # one sample per pass keeps the memory bounded
+        sample_kp, sample_joints = pelvis_relative_body(
+            body, betas[index], poses[index], output.global_orient
+        )
+        sample_keypoints.append(sample_kp)
+        if targets.joints3d is not None:
+            per_sample["mpjpe"].append(mpjpe(sample_joints, targets.joints3d))
+            per_sample["mpjpe_pa"].append(mpjpe_procrustes(sample_joints, targets.joints3d))
+        if target_tpose is not None:
+            per_sample["pve_t_sc"].append(pve_t_sc(body.tpose(betas[index]), target_tpose))
+    return torch.stack(sample_keypoints), per_sample

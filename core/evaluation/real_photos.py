@@ -213,11 +213,18 @@ def evaluate_photos(
         if np.isfinite(detector):
             sums["detector"].append(detector * to_256)
 
+    return _photo_summary(sums, ranks, failed)
+
+
+def _photo_summary(
+    sums: dict[str, list[float]], ranks: list[torch.Tensor], failed: int
+) -> dict[str, float]:
+    """:func:`evaluate_photos`' means of the per-person errors and pooled coverage."""
+
     def mean(values: list[float]) -> float:
         return float(np.mean(values)) if values else math.nan
 
     pooled = torch.cat(ranks) if ranks else torch.empty(0)
-
     return {
         "joint_error_2d_mode": mean(sums["mode"]),
         "joint_error_2d_samples": mean(sums["samples"]),

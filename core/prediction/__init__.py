@@ -15,10 +15,13 @@ The pieces:
   BlazePose (optionally inside a ``bbox``); :class:`NoPersonFoundError` when there is none.
 - :class:`CropTransform`: the square 256-pixel crop around a person and the exact pixel maps
   between crop and photo.
-- :func:`apply_occluders`: black boxes painted over a photo before detection
-  (:func:`points_under_boxes`: which keypoints they hide).
+- :class:`Occluders`, :func:`apply_occluders`: black boxes painted over a photo before edge
+  extraction (:func:`points_under_boxes`: which keypoints they hide).
 - :func:`prepare_network_input` -> :class:`NetworkInput`: all of the above plus the
   ``(18, 256, 256)`` proxy, i.e. everything in front of the network.
+- :class:`ReadingConfig`: how the network reads a crop (mirrored too, upright copies of leaning
+  people, lean search; :mod:`hkpd.prediction.readings`, the stage ``Predictor`` and
+  ``hkpd-eval`` share).
 - :func:`combine_shapes` -> :class:`CombinedShape`: one shape from several photos of the same
   person (product of the photos' shape Gaussians, or the plain mean as a baseline).
 """
@@ -38,9 +41,10 @@ from hkpd.prediction.keypoint_detector import (
     NoPersonFoundError,
 )
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
-from hkpd.prediction.occluders import apply_occluders, points_under_boxes
+from hkpd.prediction.occluders import Occluders, apply_occluders, points_under_boxes
 from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
 from hkpd.prediction.predictor import Predictor
+from hkpd.prediction.readings import ReadingConfig
 from hkpd.prediction.shape_combination import CombinedShape, combine_shapes
 
 __all__ = [
@@ -58,7 +62,9 @@ __all__ = [
     "LoadedImage",
     "NetworkInput",
     "NoPersonFoundError",
+    "Occluders",
     "Predictor",
+    "ReadingConfig",
     "apply_occluders",
     "combine_shapes",
     "load_image",

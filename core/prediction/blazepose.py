@@ -36,8 +36,8 @@ from hkpd.prediction.blazepose_models import (
     LANDMARK_MODEL,
     SEGMENTATION_OUTPUT,
     TfliteModel,
+    blazepose_model_path,
     drop_output,
-    shipped_model_path,
 )
 from hkpd.prediction.blazepose_warp import (
     HALF_PIXEL,
@@ -127,10 +127,10 @@ class BlazePose:
     ) -> None:
         self.min_detection_confidence = min_detection_confidence
         self.segmentation = segmentation
-        landmark_model = shipped_model_path(LANDMARK_MODEL).read_bytes()
+        landmark_model = blazepose_model_path(LANDMARK_MODEL).read_bytes()
         if not segmentation:
             landmark_model = drop_output(landmark_model, SEGMENTATION_OUTPUT)
-        self._detector = TfliteModel(shipped_model_path(DETECTOR_MODEL).read_bytes(), threads)
+        self._detector = TfliteModel(blazepose_model_path(DETECTOR_MODEL).read_bytes(), threads)
         self._landmarker = TfliteModel(landmark_model, threads)
         self._anchors = ssd_anchor_centres(self._detector.input_size)
 

@@ -9,11 +9,12 @@ caller serialises calls).
 
 from __future__ import annotations
 
-import importlib.resources
 from pathlib import Path
 
 import flatbuffers
 import numpy as np
+
+from hkpd.assets import shipped_file
 
 DETECTOR_MODEL = ("blazepose", "pose_detection.tflite")
 """The person detector, 224×224 RGB input in [-1, 1] -> per-anchor boxes and scores."""
@@ -30,19 +31,16 @@ development machine (11.1 vs 12.8 ms for the detector, 11.2 vs 11.6 ms for the l
 and costs CPU time that the rest of hkpd can use."""
 
 
-def shipped_model_path(parts: tuple[str, str]) -> Path:
-    """Path of a model file inside ``hkpd.assets``.
+def blazepose_model_path(parts: tuple[str, str]) -> Path:
+    """Path of one of BlazePose's model files inside ``hkpd.assets`` (:data:`DETECTOR_MODEL`,
+    :data:`LANDMARK_MODEL`).
 
     Raises:
         FileNotFoundError: the file is missing (a broken install).
     """
-    resource = importlib.resources.files("hkpd.assets").joinpath(*parts)
-    if not resource.is_file():
-        raise FileNotFoundError(
-            f"BlazePose model {'/'.join(parts)} is missing from hkpd.assets; reinstall hkpd "
-            "(pip install -e . from a full clone)"
-        )
-    return Path(str(resource))
+    return shipped_file(
+        parts, "BlazePose model", "reinstall hkpd (pip install -e . from a full clone)"
+    )
 
 
 class TfliteModel:

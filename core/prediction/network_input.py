@@ -19,10 +19,10 @@ from PIL import Image
 
 from hkpd.camera_conventions import CROP_SIZE
 from hkpd.prediction.crop import CropTransform
-from hkpd.prediction.evidence_rule import evidence_mask
+from hkpd.prediction.evidence_rule import NO_OCCLUDERS, evidence_mask
 from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
 from hkpd.prediction.keypoint_detector import KeypointDetection, KeypointDetector
-from hkpd.prediction.occluders import apply_occluders
+from hkpd.prediction.occluders import OccluderBoxes, Occluders, apply_occluders
 from hkpd.proxy import DEFAULT_IMAGE_PROXY, build_proxy
 
 
@@ -39,9 +39,13 @@ class NetworkInput:
         keypoints_crop: ``(17, 2)`` detected keypoints in crop pixels.
         confidences: ``(17,)`` detector confidences, zeroed where the keypoint is not evidence
             (below the threshold or under an occluder).
+        evidence: ``(17,)`` bool, the keypoints that are evidence
+            (:func:`hkpd.prediction.evidence_rule.evidence_mask`): the ones the heatmaps show
+            and the fit is conditioned on.
         detection: the detector's raw result on the unpainted photo (original-photo pixels,
             confidences untouched).
         image: the photo as loaded, occluders painted.
+        occluders: the boxes painted over the photo (original-photo pixels).
         crop_silhouette: ``(S, S)`` bool person mask of the crop (occluders removed), for
             networks that read a silhouette; None otherwise.
     """
@@ -51,8 +55,10 @@ class NetworkInput:
     crop_rgb: np.ndarray
     keypoints_crop: np.ndarray
     confidences: np.ndarray
+    evidence: np.ndarray
     detection: KeypointDetection
     image: LoadedImage
+    occluders: Occluders
     crop_silhouette: np.ndarray | None = None
 
     @property
@@ -72,7 +78,7 @@ def prepare_network_input(
     detector: KeypointDetector,
     *,
     bbox: Sequence[float] | np.ndarray | None = None,
-    occluders: Sequence[Sequence[float]] | np.ndarray = (),
+    occluders: Occluders | OccluderBoxes = NO_OCCLUDERS,
     max_side: int = MAX_IMAGE_SIDE,
     crop_size: int = CROP_SIZE,
     image_proxy: str = DEFAULT_IMAGE_PROXY,
@@ -91,7 +97,8 @@ def prepare_network_input(
         image: anything :func:`load_image` accepts.
         detector: the (shared, reusable) keypoint detector.
         bbox: optional ``(x0, y0, x1, y1)`` search region, original-photo pixels.
-        occluders: ``(N, 4)`` black boxes, original-photo pixels.
+        occluders: black boxes, original-photo pixels (:class:`Occluders`, or boxes that
+            :meth:`Occluders.of` turns into them).
         max_side: working-resolution cap passed to :func:`load_image`.
         crop_size: side of the crop and proxy in pixels (the network's input size).
         image_proxy: the image part of the proxy (:data:`hkpd.proxy.IMAGE_PROXIES`; the
@@ -109,14 +116,14 @@ def prepare_network_input(
         ValueError: malformed ``bbox`` or occluder boxes, keypoints too degenerate to crop, or
             a silhouette proxy without a (well-sized) silhouette.
     """
+    occluders = Occluders.of(occluders)
     loaded = load_image(image, max_side=max_side)
     if image_proxy == "silhouette":
         silhouette = _checked_silhouette(silhouette, loaded)
-    boxes = np.asarray(occluders, dtype=np.float64).reshape(-1, 4)
     detection = detector.detect(loaded, bbox=bbox)  # the unpainted photo (see the docstring)
-    if boxes.size:
-        loaded = apply_occluders(loaded, boxes)
-    evidence = evidence_mask(detection.keypoints, detection.confidences, boxes)
+    if len(occluders):
+        loaded = apply_occluders(loaded, occluders)
+    evidence = evidence_mask(detection.keypoints, detection.confidences, occluders)
     confidences = np.where(evidence, detection.confidences, 0.0)
     crop = CropTransform.from_keypoints(
         detection.keypoints,
@@ -128,8 +135,8 @@ def prepare_network_input(
     keypoints_crop = crop.image_to_crop(detection.keypoints)
     crop_silhouette = None
     if image_proxy == "silhouette":
-        if boxes.size:
-            silhouette = apply_occluders(silhouette, boxes)  # the photo's own pixels
+        if len(occluders):
+            silhouette = apply_occluders(silhouette, occluders)  # the photo's own pixels
         crop_silhouette = crop.crop_image(silhouette.astype(np.uint8) * 255) >= 128
     proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, crop_silhouette)
     return NetworkInput(
@@ -138,8 +145,10 @@ def prepare_network_input(
         crop_rgb=crop_rgb,
         keypoints_crop=keypoints_crop,
         confidences=confidences,
+        evidence=evidence,
         detection=detection,
         image=loaded,
+        occluders=occluders,
         crop_silhouette=crop_silhouette,
     )
 

@@ -9,6 +9,7 @@ blacks out exactly ``image[y0:y1, x0:x1]``; a fractional box blacks out every pi
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TypeVar
 
 import numpy as np
@@ -17,23 +18,87 @@ from hkpd.prediction.image_input import LoadedImage
 
 Image = TypeVar("Image", np.ndarray, LoadedImage)
 
+OccluderBoxes = Sequence[Sequence[float]] | np.ndarray
+"""What callers may pass for occluders: ``(N, 4)`` ``(x0, y0, x1, y1)`` boxes (may be empty)."""
 
-def apply_occluders(image: Image, boxes: Sequence[Sequence[float]] | np.ndarray) -> Image:
+
+@dataclass(frozen=True, eq=False)
+class Occluders:
+    """Black boxes over a photo, "this part of the photo gives no evidence", checked once.
+
+    Made at the API boundary (:meth:`of`) and passed on as they are: the painting
+    (:func:`apply_occluders`), the evidence rule (:func:`hkpd.prediction.evidence_rule.
+    evidence_mask`) and the network input all read the same boxes.
+
+    Attributes:
+        boxes: ``(N, 4)`` float64 ``(x0, y0, x1, y1)`` with ``x1 > x0`` and ``y1 > y0``, finite,
+            in the pixels of the image they cover (for a photo: the original photo's);
+            read-only. ``N = 0``: no occluder.
+
+    Raises:
+        ValueError: boxes not ``(N, 4)`` finite numbers, a single unwrapped box, or
+            ``x1 <= x0`` / ``y1 <= y0``.
+    """
+
+    boxes: np.ndarray
+
+    def __post_init__(self) -> None:
+        array = np.array(self.boxes, dtype=np.float64)
+        if array.size == 0:
+            array = array.reshape(0, 4)
+        if array.ndim == 1 and array.shape == (4,):
+            raise ValueError(
+                "boxes must be a list of (x0, y0, x1, y1) boxes; wrap a single box: [box]"
+            )
+        if array.ndim != 2 or array.shape[1] != 4:
+            raise ValueError(f"boxes must have shape (N, 4) as (x0, y0, x1, y1), got {array.shape}")
+        if not np.isfinite(array).all():
+            raise ValueError("occluder boxes must be finite numbers")
+        for x0, y0, x1, y1 in array:
+            if x1 <= x0 or y1 <= y0:
+                raise ValueError(f"occluder box {(x0, y0, x1, y1)} needs x1 > x0 and y1 > y0")
+        array.setflags(write=False)
+        object.__setattr__(self, "boxes", array)
+
+    @classmethod
+    def of(cls, boxes: Occluders | OccluderBoxes | None) -> Occluders:
+        """``boxes`` as :class:`Occluders` (None: none; :class:`Occluders`: themselves)."""
+        if isinstance(boxes, Occluders):
+            return boxes
+        return cls(np.zeros((0, 4)) if boxes is None else boxes)
+
+    def __len__(self) -> int:
+        return int(self.boxes.shape[0])
+
+    def covers(self, points: np.ndarray) -> np.ndarray:
+        """``(...)`` bool: which ``(..., 2)`` points (pixel centres at integers, in the boxes'
+        pixels) lie on a pixel that :func:`apply_occluders` blacks out."""
+        pixel = np.floor(np.asarray(points, dtype=np.float64) + 0.5)
+        covered = np.zeros(pixel.shape[:-1], dtype=bool)
+        u, v = pixel[..., 0], pixel[..., 1]
+        for x0, y0, x1, y1 in self.boxes:
+            covered |= (
+                (u >= np.floor(x0)) & (u < np.ceil(x1)) & (v >= np.floor(y0)) & (v < np.ceil(y1))
+            )
+        return covered
+
+
+def apply_occluders(image: Image, boxes: Occluders | OccluderBoxes) -> Image:
     """A copy of ``image`` with each box painted black.
 
     Args:
         image: ``(H, W, C)`` or ``(H, W)`` pixel array (boxes in its own pixels), or a
             :class:`LoadedImage` (boxes in ORIGINAL-photo pixels, mapped onto its possibly
             downscaled working pixels).
-        boxes: ``(N, 4)`` ``(x0, y0, x1, y1)``; parts outside the image are clipped away.
-            ``N = 0`` returns an unchanged copy.
+        boxes: :class:`Occluders`, or ``(N, 4)`` ``(x0, y0, x1, y1)``; parts outside the image
+            are clipped away. ``N = 0`` returns an unchanged copy.
 
     Returns:
         Same kind as ``image`` (a new array / LoadedImage; the input is not modified).
 
     Raises:
-        ValueError: boxes not ``(N, 4)`` finite numbers, ``x1 <= x0`` or ``y1 <= y0``, or a box
-            entirely outside the image (probably given in the wrong image's pixels).
+        ValueError: boxes that :class:`Occluders` refuses, or a box entirely outside the image
+            (probably given in the wrong image's pixels).
     """
     if isinstance(image, LoadedImage):
         width, height = image.original_size
@@ -45,19 +110,9 @@ def apply_occluders(image: Image, boxes: Sequence[Sequence[float]] | np.ndarray)
             raise ValueError(f"expected an (H, W[, C]) image, got shape {pixels.shape}")
         height, width = pixels.shape[:2]
         scale = (1.0, 1.0)
-    array = np.asarray(boxes, dtype=np.float64)
-    if array.size == 0:
-        array = array.reshape(0, 4)
-    if array.ndim == 1 and array.shape == (4,):
-        raise ValueError("boxes must be a list of (x0, y0, x1, y1) boxes; wrap a single box: [box]")
-    if array.ndim != 2 or array.shape[1] != 4:
-        raise ValueError(f"boxes must have shape (N, 4) as (x0, y0, x1, y1), got {array.shape}")
-    if not np.isfinite(array).all():
-        raise ValueError("occluder boxes must be finite numbers")
+    occluders = Occluders.of(boxes)
     out = pixels.copy()
-    for x0, y0, x1, y1 in array:
-        if x1 <= x0 or y1 <= y0:
-            raise ValueError(f"occluder box {(x0, y0, x1, y1)} needs x1 > x0 and y1 > y0")
+    for x0, y0, x1, y1 in occluders.boxes:
         if x1 <= 0 or y1 <= 0 or x0 >= width or y0 >= height:
             raise ValueError(
                 f"occluder box {(x0, y0, x1, y1)} lies entirely outside the {width}x{height} "
@@ -79,21 +134,14 @@ def _touched(low: float, high: float, length: int) -> slice:
     return slice(start, stop)
 
 
-def points_under_boxes(
-    points: np.ndarray, boxes: Sequence[Sequence[float]] | np.ndarray
-) -> np.ndarray:
+def points_under_boxes(points: np.ndarray, boxes: Occluders | OccluderBoxes) -> np.ndarray:
     """Which points lie on a pixel that :func:`apply_occluders` blacks out for these boxes.
 
     Args:
         points: ``(..., 2)`` pixel coordinates (pixel centres at integers), in the boxes' pixels.
-        boxes: ``(N, 4)`` ``(x0, y0, x1, y1)``; may be empty.
+        boxes: :class:`Occluders`, or ``(N, 4)`` ``(x0, y0, x1, y1)`` (may be empty).
 
     Returns:
         ``(...)`` bool.
     """
-    pixel = np.floor(np.asarray(points, dtype=np.float64) + 0.5)
-    covered = np.zeros(pixel.shape[:-1], dtype=bool)
-    for x0, y0, x1, y1 in np.asarray(boxes, dtype=np.float64).reshape(-1, 4):
-        u, v = pixel[..., 0], pixel[..., 1]
-        covered |= (u >= np.floor(x0)) & (u < np.ceil(x1)) & (v >= np.floor(y0)) & (v < np.ceil(y1))
-    return covered
+    return Occluders.of(boxes).covers(points)

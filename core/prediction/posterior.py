@@ -1,10 +1,11 @@
 """``BodyPosterior``: the predicted distribution over one person's body, ready to sample.
 
-It holds what the network predicted for one image (the hierarchical matrix-Fisher parameters
-of the 23 relative joint rotations, the shape Gaussian, the global rotation and the
-weak-perspective camera) together with the crop that maps the network's 256-pixel view back to
-the photo. Meshes come back in the *camera-aligned body frame*: the pelvis at the origin, axes
-of the OpenCV camera (x right, y down, z away from the viewer), metres.
+It wraps the :class:`hkpd.distributions.BodyDistribution` predicted for one image (the
+hierarchical matrix-Fisher parameters of the 23 relative joint rotations, the shape Gaussian,
+the global rotation and the weak-perspective camera) with the crop that maps the network's
+256-pixel view back to the photo, the evidence and where the distribution came from. Meshes
+come back in the *camera-aligned body frame*: the pelvis at the origin, axes of the OpenCV
+camera (x right, y down, z away from the viewer), metres.
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
-from hkpd.distributions import KinematicMatrixFisher, body_shape_distribution
-from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS, body_joint_index
+from hkpd.distributions import BodyDistribution, KinematicMatrixFisher
+from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
 from hkpd.uncertainty import vertex_uncertainty
 
 if TYPE_CHECKING:
@@ -73,11 +74,11 @@ class BodyPosterior:
     """The body distribution predicted for one person.
 
     Attributes:
-        F: ``(23, 3, 3)`` matrix-Fisher parameters of the relative joint rotations (already
-            including any concentration scaling).
-        shape_mean, shape_std: ``(10,)`` the shape Gaussian.
-        global_orient: ``(3, 3)`` body-to-camera rotation.
-        camera: ``(3,)`` weak-perspective ``[s, tx, ty]`` of the 256-pixel crop.
+        distribution: the unbatched distribution (batch shape ``()``): ``F`` ``(23, 3, 3)``
+            (already including any concentration scaling), ``shape_mean`` and ``shape_std``
+            ``(10,)``, ``global_orient`` ``(3, 3)``, ``camera`` ``(3,)`` weak-perspective
+            ``[s, tx, ty]`` of the 256-pixel crop; each is also a read-only property of the
+            posterior.
         crop: maps crop pixels to original-image pixels.
         keypoints: ``(17, 2)`` detected COCO keypoints, original-image pixels.
         confidences: ``(17,)`` their detector confidences.
@@ -102,11 +103,7 @@ class BodyPosterior:
             itself (:mod:`hkpd.prediction.mirror_reading`).
     """
 
-    F: torch.Tensor
-    shape_mean: torch.Tensor
-    shape_std: torch.Tensor
-    global_orient: torch.Tensor
-    camera: torch.Tensor
+    distribution: BodyDistribution
     crop: CropToImage
     keypoints: torch.Tensor
     confidences: torch.Tensor
@@ -118,6 +115,31 @@ class BodyPosterior:
     evidence: torch.Tensor | None = None
     upright_tilt_degrees: float | None = None
     mirror_read: bool = False
+
+    @property
+    def F(self) -> torch.Tensor:
+        """``(23, 3, 3)`` matrix-Fisher parameters of the relative joint rotations."""
+        return self.distribution.F
+
+    @property
+    def shape_mean(self) -> torch.Tensor:
+        """``(10,)`` mean shape coefficients."""
+        return self.distribution.shape_mean
+
+    @property
+    def shape_std(self) -> torch.Tensor:
+        """``(10,)`` standard deviations of the shape coefficients."""
+        return self.distribution.shape_std
+
+    @property
+    def global_orient(self) -> torch.Tensor:
+        """``(3, 3)`` body-to-camera rotation."""
+        return self.distribution.global_orient
+
+    @property
+    def camera(self) -> torch.Tensor:
+        """``(3,)`` weak-perspective ``[s, tx, ty]`` of the crop."""
+        return self.distribution.camera
 
     @property
     def conditioned(self) -> bool:
@@ -135,12 +157,12 @@ class BodyPosterior:
     def pose_distribution(self) -> KinematicMatrixFisher:
         """The hierarchical matrix-Fisher distribution, batch shape ``(1,)``; built (with its
         SVD) once per posterior."""
-        return KinematicMatrixFisher(self.F[None], BODY_PARENTS)
+        return self.distribution.map(lambda tensor: tensor[None]).pose_distribution()
 
     @property
     def shape_distribution(self) -> torch.distributions.Independent:
         """The shape Gaussian, batch shape ``(1,)``, event shape ``(10,)``."""
-        return body_shape_distribution(self.shape_mean[None], self.shape_std[None])
+        return self.distribution.map(lambda tensor: tensor[None]).shape_distribution()
 
     def _meshes(self, betas: torch.Tensor, body_pose: torch.Tensor) -> BodyMeshes:
         count = betas.shape[0]
@@ -245,14 +267,15 @@ class BodyPosterior:
                 f"joint must be a joint index, a name, a list of them or None, got {joint!r}"
             )
         scaled = self.pose_distribution.scale_concentration(selected, factor)
-        edited = replace(self, F=scaled.F[0])
+        edited = replace(self, distribution=replace(self.distribution, F=scaled.F[0]))
         edited.__dict__["pose_distribution"] = scaled  # keeps the reused SVD (cached_property)
         return edited
 
     def with_shape_std(self, factor: float) -> BodyPosterior:
         """A posterior whose shape standard deviations are scaled by ``factor`` (> 0)."""
         factor = _positive_factor("shape std factor", factor)
-        edited = replace(self, shape_std=self.shape_std * factor)
+        shape_std = self.shape_std * factor
+        edited = replace(self, distribution=replace(self.distribution, shape_std=shape_std))
         edited.__dict__["pose_distribution"] = self.pose_distribution  # pose unchanged
         return edited
 

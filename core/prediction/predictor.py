@@ -5,9 +5,10 @@ BlazePose, paint occluders, crop, build the proxy) and the distribution-predicti
 By default it then conditions the network's distribution on the detected keypoints
 (:func:`hkpd.conditioning.condition_on_keypoints`; ``docs/evidence.md``): the network's
 distribution is the prior, the confident keypoints that no occluder covers are the evidence.
-When the torso leans more than ``EvidenceConfig.upright_start_degrees``, the network also reads
-a copy of the crop turned upright (:mod:`hkpd.prediction.upright_view`) and the fit starts from
-both answers; when the evidence shows no torso, the lean is read off the network's own reading
+The network reads the crop through the reading stage (:mod:`hkpd.prediction.readings`): as it
+is and mirrored, and, when the torso leans more than ``ReadingConfig.upright_start_degrees``,
+also from a copy of the crop turned upright (:mod:`hkpd.prediction.upright_view`); the fit
+starts from both answers. When the evidence shows no torso, the lean is searched for
 (:mod:`hkpd.prediction.network_lean`). ``evidence=False`` returns the network's own
 distribution (the paper's method); for a leaning person that is its answer on the upright copy,
 mapped back to the photo (on held-out photos this reading alone cut the network's error by a
@@ -17,7 +18,6 @@ third), unless ``upright=False``.
 from __future__ import annotations
 
 import copy
-import importlib.resources
 import math
 import os
 import threading
@@ -29,6 +29,7 @@ import numpy as np
 import torch
 from PIL import Image
 
+from hkpd.assets import shipped_file
 from hkpd.body import BodyModel
 from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
 from hkpd.devices import resolve_device
@@ -36,16 +37,11 @@ from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
 from hkpd.prediction.image_input import LoadedImage
 from hkpd.prediction.keypoint_detector import KeypointDetector
-from hkpd.prediction.mirror_reading import MirrorChoosingReader
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
-from hkpd.prediction.network_lean import (
-    LEAN_CANDIDATES_DEGREES,
-    TURNED_FIT_MARGIN,
-    mode_keypoint_misfits,
-    mode_torso_tilts,
-)
+from hkpd.prediction.occluders import OccluderBoxes, Occluders
 from hkpd.prediction.posterior import BodyPosterior
-from hkpd.prediction.upright_view import UprightView, torso_tilt
+from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
+from hkpd.prediction.upright_view import UprightView
 from hkpd.proxy import build_proxy
 
 SHIPPED_MODEL = ("models", "hkpd_hierarchical.pt")
@@ -58,13 +54,8 @@ def shipped_model_path() -> Path:
     Raises:
         FileNotFoundError: they are not installed, with what to do instead.
     """
-    resource = importlib.resources.files("hkpd.assets").joinpath(*SHIPPED_MODEL)
-    if not resource.is_file():
-        raise FileNotFoundError(
-            f"the pretrained model {'/'.join(SHIPPED_MODEL)} is not in this installation of "
-            "hkpd; pass a checkpoint from `hkpd-train` (e.g. runs/hkpd/last.pt) instead"
-        )
-    return Path(str(resource))
+    remedy = "pass a checkpoint from `hkpd-train` (e.g. runs/hkpd/last.pt) instead"
+    return shipped_file(SHIPPED_MODEL, "the pretrained model", remedy)
 
 
 class Predictor:
@@ -76,9 +67,15 @@ class Predictor:
         body: the body model (default: the shipped one).
         detector: the 2D keypoint detector (default: BlazePose, created on first use).
         evidence_config: how the keypoint evidence updates the network's distribution.
-        mirror_reading: let the network read every crop (and upright copy) as it is and
-            mirrored, keeping the reading whose most likely body fits the shown keypoints more
-            closely (:mod:`hkpd.prediction.mirror_reading`); False reads each once.
+        reading_config: how the network reads each crop (:mod:`hkpd.prediction.readings`):
+            as it is and mirrored, keeping the reading whose most likely body fits the shown
+            keypoints more closely (``mirror``; False reads each once), and from which lean an
+            upright copy is read too (``upright_start_degrees``).
+
+    Attributes:
+        network: the distribution network (eval mode, on ``device``).
+        reading: the reading stage (its ``network`` is what reads a batch of proxies: the
+            network, wrapped for the mirror reading unless ``reading_config.mirror`` is off).
 
     Thread safety: ``predict`` may be called from several threads; calls are serialised.
     """
@@ -90,13 +87,13 @@ class Predictor:
         body: BodyModel | None = None,
         detector: KeypointDetector | None = None,
         evidence_config: EvidenceConfig | None = None,
-        mirror_reading: bool = True,
+        reading_config: ReadingConfig | None = None,
     ) -> None:
         self.device = torch.device(device)
         network = network.to(self.device).eval()
         self.body = (body or BodyModel()).to(self.device)
-        self.mirror_reading = mirror_reading
-        self.network = MirrorChoosingReader(network, self.body) if mirror_reading else network
+        self.network = network
+        self.reading = ReadingStage(network, self.body, reading_config)
         self.detector = detector or KeypointDetector()
         self.crop_size = int(network.config.image_size)
         self.image_proxy = str(network.config.image_proxy)
@@ -109,7 +106,7 @@ class Predictor:
         cls,
         path: str | os.PathLike[str] | None = None,
         device: str = "auto",
-        mirror_reading: bool = True,
+        reading_config: ReadingConfig | None = None,
         evidence_config: EvidenceConfig | None = None,
     ) -> Predictor:
         """Load a checkpoint (default: the shipped pretrained model).
@@ -117,7 +114,7 @@ class Predictor:
         Args:
             path: a checkpoint written by ``hkpd-train`` or the shipped weights.
             device: ``auto`` (CUDA when available), ``cpu`` or ``cuda``.
-            mirror_reading: as for the constructor.
+            reading_config: as for the constructor.
             evidence_config: None takes the evidence settings stored with the weights
                 (``hkpd-tune-evidence --write-to``; the defaults when none are stored).
         """
@@ -127,14 +124,14 @@ class Predictor:
         if evidence_config is None:
             evidence_config = EvidenceConfig.from_dict(stored_evidence_config(payload), str(source))
         return cls(
-            network, resolved, evidence_config=evidence_config, mirror_reading=mirror_reading
+            network, resolved, evidence_config=evidence_config, reading_config=reading_config
         )
 
     @torch.no_grad()
     def predict(
         self,
         image: str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage,
-        occluders: Sequence[Sequence[float]] | np.ndarray | None = None,
+        occluders: Occluders | OccluderBoxes | None = None,
         bbox: Sequence[float] | np.ndarray | None = None,
         evidence: bool = True,
         upright: bool = True,
@@ -155,7 +152,7 @@ class Predictor:
                 be made (too few keypoints, non-finite numbers), the network's distribution is
                 returned and ``posterior.fallback_reason`` says why.
             upright: when the detected torso leans more than
-                ``evidence_config.upright_start_degrees``, let the network also read a copy of
+                ``reading_config.upright_start_degrees``, let the network also read a copy of
                 the crop turned upright (``posterior.upright_tilt_degrees`` says by how much):
                 with ``evidence`` the fit starts from both answers, without it the upright
                 copy's answer is the network's posterior. When the evidence shows no torso
@@ -175,32 +172,22 @@ class Predictor:
                 image,
                 self.detector,
                 bbox=bbox,
-                occluders=() if occluders is None else occluders,
+                occluders=Occluders.of(occluders),
                 crop_size=self.crop_size,
                 image_proxy=self.image_proxy,
                 silhouette=silhouette,
             )
-            observed = prepared.confidences > 0
-            tilt = torso_tilt(prepared.keypoints_crop, observed) if upright else None
-            view = None
-            proxies = [prepared.proxy]
-            if tilt is not None and abs(tilt) > self._upright_threshold:
-                view = self._upright_view(tilt, prepared)
-            elif upright and tilt is None:  # no torso in the evidence: the network's lean
-                view = self._view_from_network_lean(prepared)
-            if view is not None:
-                tilt = view.tilt
-                proxies.append(_upright_proxy(view, prepared, self.image_proxy))
-            output = self.network(torch.stack(proxies).to(self.device))
-            mirrored = self._mirrored(len(proxies))
-            starts = _starts(output, view)
+            readings = self.reading.read(
+                self._reading_input(prepared), upright=upright, keep_as_it_is=True
+            )
+            starts = readings.distribution.map(lambda tensor: tensor.detach().float().cpu())
             if not evidence:  # the upright copy's reading when there is one
-                last = len(proxies) - 1
-                return self._posterior(starts, last, prepared, observed, tilt, mirrored[last])
-            network_posterior = self._posterior(starts, 0, prepared, observed, tilt, mirrored[0])
+                chosen = readings.chosen_rows[0]
+                return self._posterior(starts, chosen, prepared, readings)
+            network_posterior = self._posterior(starts, 0, prepared, readings)
             keypoint_evidence = KeypointEvidence(
                 torch.as_tensor(prepared.keypoints_crop, dtype=torch.float64),
-                torch.as_tensor(observed),
+                torch.as_tensor(prepared.evidence),
                 self.crop_size,
             )
             fit = condition_on_keypoints(
@@ -208,110 +195,68 @@ class Predictor:
             )
         if fit.conditioned is None:
             return replace(network_posterior, evidence_fit=fit)
-        prior = self._posterior(starts, fit.start, prepared, observed, tilt, mirrored[fit.start])
-        conditioned = fit.conditioned
+        prior = self._posterior(starts, fit.start, prepared, readings)
         return replace(
             prior,
-            F=conditioned.F.float().to(self.device),
-            shape_mean=conditioned.shape_mean.float().to(self.device),
-            shape_std=conditioned.shape_std.float().to(self.device),
-            global_orient=conditioned.global_orient.float().to(self.device),
-            camera=conditioned.camera.float().to(self.device),
+            distribution=fit.conditioned.map(self._on_device),
             source="evidence",
             prior=prior,
             evidence_fit=fit,
         )
 
-    def _mirrored(self, count: int) -> list[bool]:
-        """Which of the last network call's ``count`` readings came from the mirror image."""
-        if isinstance(self.network, MirrorChoosingReader):
-            return [bool(flag) for flag in self.network.last_mirrored]
-        return [False] * count
-
-    @property
-    def _upright_threshold(self) -> float:
-        """Lean (radians) from which the network also reads an upright copy."""
-        return math.radians(self.evidence_config.upright_start_degrees)
-
-    def _upright_view(self, tilt: float, prepared: NetworkInput) -> UprightView:
-        """The upright copy undoing ``tilt``, framed as the crop was (on every detected
-        keypoint), not on the evidence alone: the network learnt crops framed around the whole
-        person, and covering a limb must not move the copy."""
-        return UprightView.from_tilt(tilt, prepared.box_keypoints_crop, self.crop_size)
-
-    def _view_from_network_lean(self, prepared: NetworkInput) -> UprightView | None:
-        """For a crop whose evidence shows no torso: the upright copy turned by the lean, among
-        :data:`LEAN_CANDIDATES_DEGREES` and the lean of the network's own reading, whose reading
-        fits the shown keypoints best (:mod:`hkpd.prediction.network_lean`); None unless it fits
-        them :data:`TURNED_FIT_MARGIN` closer than the crop read as it is."""
-        keypoints = prepared.keypoints_crop[None]
-        observed = (prepared.confidences > 0)[None]
-        as_it_is = self.network(prepared.proxy[None].to(self.device))
-        best = mode_keypoint_misfits(as_it_is, self.body, self.crop_size, keypoints, observed)[0]
-        leans = [math.radians(degrees) for degrees in LEAN_CANDIDATES_DEGREES]
-        (own_lean,) = mode_torso_tilts(as_it_is, self.body, self.crop_size)
-        if own_lean is not None and abs(own_lean) > self._upright_threshold:
-            leans.append(own_lean)
-        views = [self._upright_view(lean, prepared) for lean in leans]
-        turned = torch.stack([_upright_proxy(view, prepared, self.image_proxy) for view in views])
-        output = self.network(turned.to(self.device))
-        mapped = [
-            view.to_crop_frame(output.global_orient[index].cpu(), output.camera[index].cpu())
-            for index, view in enumerate(views)
-        ]
-        output = replace(
-            output,
-            global_orient=torch.stack([orient for orient, _ in mapped]).to(self.device),
-            camera=torch.stack([camera for _, camera in mapped]).to(self.device),
+    def _reading_input(self, prepared: NetworkInput) -> ReadingInput:
+        """The reading stage's input for one photo: its proxy; the shown keypoints are the
+        evidence; upright copies are framed as the crop was (on every detected keypoint), not
+        on the evidence alone: the network learnt crops framed around the whole person, and
+        covering a limb must not move the copy."""
+        return ReadingInput(
+            proxy=prepared.proxy[None].to(self.device),
+            keypoints=prepared.keypoints_crop[None],
+            shown=prepared.evidence[None],
+            turned_proxy=PhotoTurnedProxy(prepared, self.image_proxy),
+            framing=prepared.box_keypoints_crop[None],
         )
-        count = len(views)
-        misfits = mode_keypoint_misfits(
-            output,
-            self.body,
-            self.crop_size,
-            np.repeat(keypoints, count, 0),
-            np.repeat(observed, count, 0),
-        )
-        winner = int(np.argmin(misfits))
-        return views[winner] if misfits[winner] < (1.0 - TURNED_FIT_MARGIN) * best else None
 
     def _posterior(
         self,
         starts: BodyDistribution,
-        index: int,
+        row: int,
         prepared: NetworkInput,
-        observed: np.ndarray,
-        tilt: float | None,
-        mirror_read: bool = False,
+        readings: Readings,
     ) -> BodyPosterior:
-        """The network's posterior of start ``index`` (0: the crop; 1: its upright copy,
-        already in the crop's frame, that undid ``tilt`` radians), read from the mirror image
-        when ``mirror_read``."""
+        """The network's posterior of reading ``row`` of ``readings`` (0: the crop as it is;
+        1: its upright copy, already in the crop's frame), as ``starts`` holds it."""
+        view = readings.row_views[row]
         return BodyPosterior(
-            upright_tilt_degrees=math.degrees(tilt) if index == 1 and tilt is not None else None,
-            mirror_read=mirror_read,
-            F=starts.F[index].float().to(self.device),
-            shape_mean=starts.shape_mean[index].float().to(self.device),
-            shape_std=starts.shape_std[index].float().to(self.device),
-            global_orient=starts.global_orient[index].float().to(self.device),
-            camera=starts.camera[index].float().to(self.device),
+            upright_tilt_degrees=None if view is None else math.degrees(view.tilt),
+            mirror_read=bool(readings.mirrored[row]),
+            distribution=starts.rows(row).map(self._on_device),
             crop=prepared.crop,
             keypoints=torch.as_tensor(prepared.detection.keypoints, dtype=torch.float32),
             confidences=torch.as_tensor(prepared.confidences, dtype=torch.float32),
             body=self.body,
             network_input=prepared,
-            evidence=torch.as_tensor(observed),
+            evidence=torch.as_tensor(prepared.evidence),
         )
+
+    def _on_device(self, tensor: torch.Tensor) -> torch.Tensor:
+        """``tensor`` as the posterior holds it: float32 on the predictor's device."""
+        return tensor.float().to(self.device)
 
     def _float64_body(self) -> BodyModel:
         """A float64 CPU copy of the body model for the fit (made once)."""
         if self._body64 is None:
-            self._body64 = copy.deepcopy(self.body).cpu().double()
+            self._body64 = float64_body(self.body)
         return self._body64
 
     def close(self) -> None:
         """Release the detector's resources."""
         self.detector.close()
+
+
+def float64_body(body: BodyModel) -> BodyModel:
+    """A float64 CPU copy of ``body``, for the keypoint fit (which works in float64)."""
+    return copy.deepcopy(body).cpu().double()
 
 
 def refuse_silhouette_model(predictor: Predictor, tool: str) -> None:
@@ -325,29 +270,28 @@ def refuse_silhouette_model(predictor: Predictor, tool: str) -> None:
         )
 
 
-def _upright_proxy(view: UprightView, prepared: NetworkInput, image_proxy: str) -> torch.Tensor:
-    """The ``(C + 17, S, S)`` proxy of the upright copy: the crop (and its silhouette) turned,
-    the image proxy found again on it, heatmaps drawn at the turned keypoints."""
-    silhouette = None
-    if prepared.crop_silhouette is not None:
-        silhouette = view.warp(prepared.crop_silhouette.astype(np.uint8) * 255) >= 128
-    return build_proxy(
-        view.warp(prepared.crop_rgb),
-        view.points(prepared.keypoints_crop),
-        prepared.confidences,
-        image_proxy,
-        silhouette,
-    )
+class PhotoTurnedProxy:
+    """Upright copies of a photo's crop (:class:`hkpd.prediction.readings.TurnedProxy`): the
+    crop (and its silhouette) turned, the image proxy found again on it, heatmaps drawn at the
+    turned keypoints.
 
+    Args:
+        prepared: the photo's network input.
+        image_proxy: the image part of the proxy (the network's ``config.image_proxy``).
+    """
 
-def _starts(output: BodyDistribution, view: UprightView | None) -> BodyDistribution:
-    """The network's answers as fit starts on the CPU, the upright copy's mapped back to the
-    crop's frame."""
-    F, shape_mean, shape_std, orient, camera = (
-        getattr(output, name).detach().float().cpu()
-        for name in ("F", "shape_mean", "shape_std", "global_orient", "camera")
-    )
-    if view is not None:
-        orient, camera = orient.clone(), camera.clone()
-        orient[1], camera[1] = view.to_crop_frame(orient[1], camera[1])
-    return BodyDistribution(F, shape_mean, shape_std, orient, camera)
+    def __init__(self, prepared: NetworkInput, image_proxy: str) -> None:
+        self.prepared, self.image_proxy = prepared, image_proxy
+
+    def __call__(self, example: int, view: UprightView) -> torch.Tensor:
+        """The ``(C + 17, S, S)`` proxy of the crop (``example`` 0) turned by ``view``."""
+        prepared, silhouette = self.prepared, None
+        if prepared.crop_silhouette is not None:
+            silhouette = view.warp(prepared.crop_silhouette.astype(np.uint8) * 255) >= 128
+        return build_proxy(
+            view.warp(prepared.crop_rgb),
+            view.points(prepared.keypoints_crop),
+            prepared.confidences,
+            self.image_proxy,
+            silhouette,
+        )

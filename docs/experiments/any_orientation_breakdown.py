@@ -23,12 +23,11 @@ from mirror_and_perspective_readings import _best_camera_error, perspective_from
 
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import weak_perspective_project
-from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
-from hkpd.prediction.mirror_reading import MirrorChoosingReader
-from hkpd.prediction.upright_reading import UprightReader
-from hkpd.synthesis.generator import iter_fixed_test_set
+from hkpd.evaluation.test_set import fixed_batches, network_and_generator
+from hkpd.prediction.proxy_reading import ProxyReader
+from hkpd.prediction.readings import ReadingConfig
 from hkpd.synthesis.orientation import ANY_ORIENTATION
 
 GROUPS = ((0.0, 20.0), (20.0, 45.0), (45.0, 90.01))
@@ -37,15 +36,13 @@ GROUPS = ((0.0, 20.0), (20.0, 45.0), (45.0, 90.01))
 
 def _split_columns(checkpoint, poses, count: int, orientation) -> dict[str, np.ndarray]:
     """Per example: the network's error, both floors and the torso's out-of-picture angle."""
-    network, generator = _network_and_test_generator(
-        checkpoint, poses, "cpu", orientation=orientation
-    )
+    network, generator = network_and_generator(checkpoint, poses, "cpu", orientation=orientation)
     network.eval()
     body = generator.body
-    reader = UprightReader(MirrorChoosingReader(network, body=body), body=body)
+    reader = ProxyReader(network, ReadingConfig(), body=body)
     columns: dict[str, list[np.ndarray]] = {"network": [], "weak": [], "perspective": [], "out": []}
     with torch.no_grad():
-        for batch in iter_fixed_test_set(generator, count, TEST_SET_SEED, 50):
+        for batch in fixed_batches(generator, count):
             size = int(batch.proxy.shape[-1])
             output = reader(batch.proxy, batch.keypoints2d)
             metrics = evaluate_prediction(output, body, targets_of(batch), 0, size)

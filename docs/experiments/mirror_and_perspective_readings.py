@@ -42,13 +42,13 @@ from experiment_arguments import parse_experiment_arguments
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import BodyDistribution
-from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
+from hkpd.evaluation.test_set import fixed_batches, network_and_generator
 from hkpd.prediction.mirror_reading import mirror_proxy, unmirror_output
 from hkpd.prediction.network_lean import mode_keypoint_misfits
-from hkpd.prediction.upright_reading import UprightReader
+from hkpd.prediction.proxy_reading import ProxyReader
+from hkpd.prediction.readings import ReadingConfig
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
-from hkpd.synthesis.generator import iter_fixed_test_set
 from hkpd.synthesis.orientation import ANY_ORIENTATION
 
 
@@ -118,15 +118,17 @@ def _best_camera_error(points, batch, project, start: torch.Tensor, size: int) -
 
 
 def _split_errors(checkpoint: Path, poses: Path | None, count: int, orientation) -> dict:
-    network, generator = _network_and_test_generator(
-        checkpoint, poses, "cpu", orientation=orientation
-    )
+    network, generator = network_and_generator(checkpoint, poses, "cpu", orientation=orientation)
     network.eval()
     body = generator.body
     readers = {
-        "as it is": UprightReader(network, body=body),
-        "mirrored": UprightReader(MirroredReading(network, average=False), body=body),
-        "mirror-averaged": UprightReader(MirroredReading(network, average=True), body=body),
+        "as it is": ProxyReader(network, ReadingConfig(mirror=False), body=body),
+        "mirrored": ProxyReader(
+            MirroredReading(network, average=False), ReadingConfig(mirror=False), body=body
+        ),
+        "mirror-averaged": ProxyReader(
+            MirroredReading(network, average=True), ReadingConfig(mirror=False), body=body
+        ),
     }
     columns: dict[str, list[np.ndarray]] = {}
 
@@ -134,7 +136,7 @@ def _split_errors(checkpoint: Path, poses: Path | None, count: int, orientation)
         columns.setdefault(name, []).append(values)
 
     with torch.no_grad():
-        for batch in iter_fixed_test_set(generator, count, TEST_SET_SEED, 50):
+        for batch in fixed_batches(generator, count):
             size = int(batch.proxy.shape[-1])
             scale = CROP_SIZE / size
             peaks, present = heatmap_peaks(batch.proxy[:, -NUM_KEYPOINTS:])

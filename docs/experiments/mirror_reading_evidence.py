@@ -27,15 +27,13 @@ from experiment_arguments import parse_experiment_arguments
 
 from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
 from hkpd.distributions import BodyDistribution
-from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
-from hkpd.evaluation.evidence_synthetic import float64_body
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
+from hkpd.evaluation.test_set import fixed_batches, network_and_generator
 from hkpd.prediction.mirror_reading import MirrorChoosingReader
+from hkpd.prediction.predictor import float64_body
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
-from hkpd.synthesis.generator import iter_fixed_test_set
 
-FIELDS = ("F", "shape_mean", "shape_std", "global_orient", "camera")
 METRICS = {
     "joint_error_2d_mode": ("mode 2D (px)", 256.0),
     "mpjpe_pa": ("MPJPE-PA (mm)", 1000.0),
@@ -50,24 +48,22 @@ def _conditioned(
 ) -> BodyDistribution:
     """The evidence posterior of every example, fitted from the readings' starts (the
     first reading's own where the fit fails)."""
-    first = readings[0]
-    fields = {name: getattr(first, name).clone() for name in FIELDS}
-    for item in range(first.batch_size):
-        starts = BodyDistribution(
-            *(torch.cat([getattr(r, name)[item : item + 1] for r in readings]) for name in FIELDS)
-        )
+    conditioned = readings[0].map(torch.clone)
+    for item in range(conditioned.batch_size):
+        rows = [reading.rows(slice(item, item + 1)).tensors() for reading in readings]
+        starts = BodyDistribution(*(torch.cat(parts) for parts in zip(*rows, strict=True)))
         evidence = KeypointEvidence(detected[item], reported[item], size)
         fit = condition_on_keypoints(body64, starts, evidence, config)
         if fit.conditioned is not None:
-            for name in FIELDS:
-                fields[name][item] = getattr(fit.conditioned, name).to(fields[name].dtype)
-    return BodyDistribution(**fields)
+            for mine, fitted in zip(conditioned.tensors(), fit.conditioned.tensors(), strict=True):
+                mine[item] = fitted.to(mine.dtype)
+    return conditioned
 
 
 def main(argv: list[str] | None = None) -> int:
     arguments = parse_experiment_arguments(__doc__.splitlines()[0], argv)
     torch.set_num_threads(1)
-    network, generator = _network_and_test_generator(arguments.checkpoint, arguments.poses, "cpu")
+    network, generator = network_and_generator(arguments.checkpoint, arguments.poses, "cpu")
     network.eval()
     body = generator.body
     body64, config = float64_body(body), EvidenceConfig()
@@ -77,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     sums: dict[str, dict[str, list[np.ndarray]]] = {row: {} for row in rows}
     mirrored_share = []
     with torch.no_grad():
-        for batch in iter_fixed_test_set(generator, arguments.count, TEST_SET_SEED, 50):
+        for batch in fixed_batches(generator, arguments.count):
             size = int(batch.proxy.shape[-1])
             detected, reported = detector_like_keypoints(
                 batch.keypoints2d, batch.visible, size, noise, noise_generator

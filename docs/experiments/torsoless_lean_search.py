@@ -1,7 +1,7 @@
 """Experiment: on views whose heatmaps show no torso, choose the lean to read at by how well the
 reading fits the keypoints shown.
 
-The upright reading (:mod:`hkpd.prediction.upright_reading`) turns a view with no torso in its
+The upright reading (:mod:`hkpd.prediction.readings`) turns a view with no torso in its
 heatmaps by the lean of the network's own reading, read again twice
 (:mod:`hkpd.prediction.network_lean`). On the any-orientation synthetic test split those views
 (5 %) stay far off. This script reads each of them at twelve candidate leans (every 30°, 0° =
@@ -28,14 +28,14 @@ from experiment_arguments import parse_experiment_arguments
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import BodyDistribution
-from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
-from hkpd.prediction.upright_reading import UprightReader, _view
+from hkpd.evaluation.test_set import fixed_batches, network_and_generator
+from hkpd.prediction.proxy_reading import ProxyReader, proxy_reading_input
+from hkpd.prediction.readings import ReadingConfig
 from hkpd.prediction.upright_view import torso_tilt
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
-from hkpd.synthesis.generator import iter_fixed_test_set
 from hkpd.synthesis.orientation import ANY_ORIENTATION
 
 CANDIDATE_DEGREES = tuple(range(0, 360, 30))
@@ -50,14 +50,13 @@ def _rows_of(targets, rows: list[int]):
     return type(targets)(**fields)
 
 
-def _torsoless_errors(reader: UprightReader, body, batch) -> tuple[np.ndarray, ...]:
+def _torsoless_errors(reader: ProxyReader, body, batch) -> tuple[np.ndarray, ...]:
     """``(V,)`` 2D mode errors (px at 256) of the batch's torso-less views: today's reading,
     turned by the true lean, best candidate in hindsight, candidate chosen by fit."""
     peaks, present = heatmap_peaks(batch.proxy[:, -NUM_KEYPOINTS:])
     points, observed = peaks.double().numpy(), present.numpy()
     rows = [i for i in range(len(points)) if torso_tilt(points[i], observed[i]) is None]
     proxy, size = batch.proxy[rows], batch.proxy.shape[-1]
-    framing = batch.keypoints2d[rows].double().numpy()
     targets = _rows_of(targets_of(batch), rows)
     scale = CROP_SIZE / size
 
@@ -76,12 +75,9 @@ def _torsoless_errors(reader: UprightReader, body, batch) -> tuple[np.ndarray, .
         return error.double().numpy() * scale, np.array(misfit) * scale
 
     def read_at(leans: list[float | None]) -> BodyDistribution:
-        views = {
-            k: _view(lean, points[row], observed[row], framing, k, size)
-            for k, (row, lean) in enumerate(zip(rows, leans, strict=True))
-            if lean
-        }
-        return reader._read(proxy, points[rows], present[rows], views)
+        torsoless = proxy_reading_input(proxy, batch.keypoints2d[rows])
+        views = [torsoless.view(k, lean) if lean else None for k, lean in enumerate(leans)]
+        return reader.stage.read_views(torsoless, views).chosen()
 
     if not rows:
         return tuple(np.empty(0) for _ in range(4))
@@ -97,13 +93,16 @@ def _torsoless_errors(reader: UprightReader, body, batch) -> tuple[np.ndarray, .
 
 def main(argv: list[str] | None = None) -> int:
     arguments = parse_experiment_arguments(__doc__.splitlines()[0], argv)
-    network, generator = _network_and_test_generator(
+    network, generator = network_and_generator(
         arguments.checkpoint, arguments.poses, "cpu", orientation=ANY_ORIENTATION
     )
-    reader, body = UprightReader(network.eval(), body=generator.body), generator.body
+    reader, body = (
+        ProxyReader(network.eval(), ReadingConfig(mirror=False), body=generator.body),
+        generator.body,
+    )
     columns: list[list[np.ndarray]] = [[], [], [], []]
     with torch.no_grad():
-        for batch in iter_fixed_test_set(generator, arguments.count, TEST_SET_SEED, 50):
+        for batch in fixed_batches(generator, arguments.count):
             for column, values in zip(columns, _torsoless_errors(reader, body, batch), strict=True):
                 column.append(values)
     today = columns[0]

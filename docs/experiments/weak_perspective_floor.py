@@ -23,15 +23,15 @@ from experiment_arguments import parse_experiment_arguments
 
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, pixels_to_ndc
-from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
-from hkpd.prediction.upright_reading import UprightReader
+from hkpd.evaluation.test_set import fixed_batches, network_and_generator
+from hkpd.prediction.proxy_reading import ProxyReader
+from hkpd.prediction.readings import ReadingConfig
 from hkpd.prediction.upright_view import torso_tilt
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
 from hkpd.synthesis.batch import TrainingBatch
-from hkpd.synthesis.generator import iter_fixed_test_set
 from hkpd.synthesis.orientation import ANY_ORIENTATION
 
 STEEP_DEGREES = 40.0
@@ -81,13 +81,13 @@ def main(argv: list[str] | None = None) -> int:
           "| network, read upright (px) | network's own part (px, in quadrature) |")  # fmt: skip
     print("|---|---|---|---|---|---|")
     for split, orientation in (("upright", None), ("any orientation", ANY_ORIENTATION)):
-        network, generator = _network_and_test_generator(
+        network, generator = network_and_generator(
             arguments.checkpoint, arguments.poses, "cpu", orientation=orientation
         )
-        reader = UprightReader(network.eval(), body=generator.body)
+        reader = ProxyReader(network.eval(), ReadingConfig(mirror=False), body=generator.body)
         floors, errors, kinds = [], [], []
         with torch.no_grad():
-            for batch in iter_fixed_test_set(generator, arguments.count, TEST_SET_SEED, 50):
+            for batch in fixed_batches(generator, arguments.count):
                 output = reader(batch.proxy, crop_keypoints=batch.keypoints2d)
                 size = batch.proxy.shape[-1]
                 mode_error = evaluate_prediction(

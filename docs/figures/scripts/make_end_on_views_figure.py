@@ -27,11 +27,10 @@ from mirror_and_perspective_readings import best_camera
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.coco_keypoints import COCO17_LIMBS
-from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator
-from hkpd.prediction.mirror_reading import MirrorChoosingReader
+from hkpd.evaluation.test_set import fixed_batches, network_and_generator
 from hkpd.prediction.overview import BACKGROUND, TEXT, _font
-from hkpd.prediction.upright_reading import UprightReader
-from hkpd.synthesis.generator import iter_fixed_test_set
+from hkpd.prediction.proxy_reading import ProxyReader
+from hkpd.prediction.readings import ReadingConfig
 from hkpd.synthesis.orientation import ANY_ORIENTATION
 
 FIGURE = Path(__file__).resolve().parents[1] / "end_on_views.png"
@@ -69,15 +68,15 @@ def _visible_error(points: np.ndarray, truth: np.ndarray, visible: np.ndarray, s
 def main(argv: list[str] | None = None) -> int:
     arguments = parse_experiment_arguments(__doc__.splitlines()[0], argv)
     torch.set_num_threads(1)
-    network, generator = _network_and_test_generator(
+    network, generator = network_and_generator(
         arguments.checkpoint, arguments.poses, "cpu", orientation=ANY_ORIENTATION
     )
     network.eval()
     body = generator.body
-    reader = UprightReader(MirrorChoosingReader(network, body=body), body=body)
+    reader = ProxyReader(network, ReadingConfig(), body=body)
     panels: list[tuple[Image.Image, str]] = []
     with torch.no_grad():
-        for batch in iter_fixed_test_set(generator, arguments.count, TEST_SET_SEED, 50):
+        for batch in fixed_batches(generator, arguments.count):
             truth_body, _ = pelvis_relative_body(
                 body, batch.betas, batch.body_pose, batch.global_orient
             )

@@ -27,10 +27,11 @@ import numpy as np
 import torch
 from PIL import Image
 
-from hkpd.evaluation.cli import TEST_SET_SEED, _network_and_test_generator, evaluate_synthetic
+from hkpd.evaluation.cli import evaluate_synthetic
 from hkpd.evaluation.image_proxy_blanking import WithoutImageProxy
 from hkpd.evaluation.real_photos import evaluate_photos, load_coco_people
 from hkpd.evaluation.synthetic import evaluate_batches
+from hkpd.evaluation.test_set import fixed_batches, network_and_generator
 from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.poses import pose_source
 from hkpd.prediction import Predictor
@@ -39,7 +40,6 @@ from hkpd.synthesis.generator import (
     SyntheticDataConfig,
     SyntheticDataGenerator,
     batch_seed,
-    iter_fixed_test_set,
 )
 
 FIGURE = Path(__file__).resolve().parents[1] / "proxy_ablation.png"
@@ -105,10 +105,10 @@ def main() -> None:
         photos = evaluate_photos(
             predictor, people, show_progress=False, mode_errors=person_errors[label]
         )
-        network, generator = _network_and_test_generator(checkpoint, args.poses, "cpu")
+        network, generator = network_and_generator(checkpoint, args.poses, "cpu")
         blind = WithoutImageProxy(network.eval())
         synthetic_blind = evaluate_batches(
-            blind, iter_fixed_test_set(generator, args.count, TEST_SET_SEED, 50),
+            blind, fixed_batches(generator, args.count),
             generator.body, SAMPLES,
         )  # fmt: skip
         blind_predictor = Predictor(blind, "cpu", detector=predictor.detector)
