@@ -3,8 +3,9 @@
 
 from __future__ import annotations
 
-import importlib.resources
 from pathlib import Path
+
+from hkpd.assets import shipped_file
 
 SHIPPED_PHOTO = ("photos", "warrior_lunge.jpg")
 """The photo inside the ``hkpd.assets`` package."""
@@ -16,9 +17,6 @@ def shipped_photo() -> Path:
     Raises:
         FileNotFoundError: it is not in this installation.
     """
-    resource = importlib.resources.files("hkpd.assets").joinpath(*SHIPPED_PHOTO)
-    if not resource.is_file():
-        raise FileNotFoundError(
-            f"the shipped photo {'/'.join(SHIPPED_PHOTO)} is missing from this installation of hkpd"
-        )
-    return Path(str(resource))
+    return shipped_file(
+        SHIPPED_PHOTO, "the shipped photo", "reinstall hkpd, or pass a photo of your own"
+    )

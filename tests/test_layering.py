@@ -17,6 +17,7 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
     for name, allowed in {
         # shared conventions and arithmetic
         "alignment": (),
+        "assets": (),
         "camera_conventions": (),
         "coco_keypoints": (),
         "cpu_allocator": (),
@@ -26,13 +27,13 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         "mirror_symmetry": ("kinematic_tree",),
         # the model
         "distributions": ("kinematic_tree",),
-        "body": ("coco_keypoints", "kinematic_tree"),
+        "body": ("assets", "coco_keypoints", "kinematic_tree"),
         "proxy": (),
         "rendering": ("camera_conventions",),
         "network": ("camera_conventions", "distributions", "kinematic_tree", "proxy"),
         "conditioning": ("body", "camera_conventions", "coco_keypoints", "distributions"),
         "prediction": (
-            "body", "camera_conventions", "coco_keypoints", "conditioning", "devices",
+            "assets", "body", "camera_conventions", "coco_keypoints", "conditioning", "devices",
             "distributions", "kinematic_tree", "mirror_symmetry", "network", "proxy",
             "rendering", "uncertainty",
         ),
@@ -54,8 +55,8 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         ),
         # the browser app: the model and the prediction, never the training side
         "explorer": (
-            "body", "camera_conventions", "coco_keypoints", "distributions", "kinematic_tree",
-            "prediction", "rendering", "uncertainty",
+            "assets", "body", "camera_conventions", "coco_keypoints", "distributions",
+            "kinematic_tree", "prediction", "rendering", "uncertainty",
         ),
         ROOT_PACKAGE: ("body", "prediction"),
     }.items()

