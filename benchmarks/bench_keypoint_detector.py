@@ -7,7 +7,7 @@ shared machine wall time grows with the load; the CPU time of a call (``detect``
 threads) does not, and with ``--threads 1`` it is the wall time on an idle core.
 
 ``--mediapipe`` times the legacy mediapipe solution the same way instead (where mediapipe is
-installed; ``hkpd.prediction.mediapipe_reference``).
+installed; ``hkpd.prediction.detection.mediapipe_reference``).
 
 Usage: python benchmarks/bench_keypoint_detector.py DIR [DIR ...] [--repeats 5] [--threads 1]
 [--mediapipe]
@@ -23,13 +23,13 @@ import time
 from pathlib import Path
 
 from hkpd.prediction import KeypointDetector, NoPersonFoundError, load_image
-from hkpd.prediction.blazepose import BlazePose
+from hkpd.prediction.detection.blazepose import BlazePose
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
 
 
 def time_mediapipe(photos: list[Path], repeats: int) -> None:
     """Median wall and CPU ms of the legacy solution's call per photo (warm graph)."""
-    from hkpd.prediction.mediapipe_reference import MediapipePose
+    from hkpd.prediction.detection.mediapipe_reference import MediapipePose
 
     pose = MediapipePose()
     wall, cpu = [], []

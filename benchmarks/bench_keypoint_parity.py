@@ -26,8 +26,8 @@ import numpy as np
 
 from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.evaluation.real_photos import load_coco_people
+from hkpd.prediction.detection.keypoint_detector import COCO_FROM_BLAZEPOSE, KeypointDetector
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
-from hkpd.prediction.keypoint_detector import COCO_FROM_BLAZEPOSE, KeypointDetector
 
 
 def cases(demo: Path | None, coco: Path | None) -> list[tuple[str, Path, np.ndarray | None]]:
@@ -47,7 +47,7 @@ def cases(demo: Path | None, coco: Path | None) -> list[tuple[str, Path, np.ndar
 
 def run_mediapipe(todo: list) -> tuple[np.ndarray, list[float]]:
     """``(N, 33, 3)`` landmarks (NaN where no person) and per-case seconds."""
-    from hkpd.prediction.mediapipe_reference import MediapipePose
+    from hkpd.prediction.detection.mediapipe_reference import MediapipePose
 
     pose = MediapipePose()
     try:

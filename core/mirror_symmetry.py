@@ -1,7 +1,7 @@
 """Left/right mirroring of SMPL poses across the body's sagittal plane (x -> -x in SMPL axes).
 
 Shared by the pose bank (mirrored training poses, :mod:`hkpd.poses.bank_builder`) and the
-prediction (reading the mirror image of a photo, :mod:`hkpd.prediction.mirror_reading`), so it
+prediction (reading the mirror image of a photo, :mod:`hkpd.prediction.readings.mirror`), so it
 sits next to the kinematic tree, below both."""
 
 from __future__ import annotations

@@ -37,8 +37,8 @@ from hkpd.explorer.state import MAX_OCCLUDERS, MAX_SAME_PERSON_PHOTOS, ExplorerS
 from hkpd.explorer.upload import UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
 from hkpd.kinematic_tree import body_joint_index
-from hkpd.prediction.fit_overlay import FitOverlay, render_fit_overlay
-from hkpd.prediction.keypoint_detector import NoPersonFoundError
+from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
+from hkpd.prediction.exports.fit_overlay import FitOverlay, render_fit_overlay
 from hkpd.prediction.shape_combination import CombinedShape, combine_shape_tensors
 
 PREDICTION_DEBOUNCE_S = 0.12

@@ -1,8 +1,9 @@
 """Colours for per-vertex uncertainty in the explorer, and the colour-bar legend.
 
-The colours are the library's one uncertainty ramp (:mod:`hkpd.prediction.uncertainty_colours`,
-viridis-like, the same as ``hkpd-predict``'s pictures), so a screenshot and an exported render
-of the same prediction agree. The scale is FIXED (0 .. ``max_cm``) rather than stretched to each
+The colours are the library's one uncertainty ramp
+(:mod:`hkpd.prediction.exports.uncertainty_colours`, viridis-like, the same as
+``hkpd-predict``'s pictures), so a screenshot and an exported render of the same prediction
+agree. The scale is FIXED (0 .. ``max_cm``) rather than stretched to each
 prediction, so that hiding a limb visibly turns it warmer instead of silently rescaling
 everything; the explorer's slider moves the top.
 """
@@ -12,7 +13,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from hkpd.prediction.uncertainty_colours import UNCERTAINTY_MAX_M, UncertaintyColourScale
+from hkpd.prediction.exports.uncertainty_colours import (
+    UNCERTAINTY_MAX_M,
+    UncertaintyColourScale,
+)
 
 DEFAULT_MAX_CM = UNCERTAINTY_MAX_M * 100.0
 """Default top of the uncertainty colour scale, centimetres (``hkpd-predict``'s too)."""

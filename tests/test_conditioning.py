@@ -23,7 +23,7 @@ from hkpd.conditioning.laplace import matrix_fisher_precision
 from hkpd.distributions import BodyDistribution, KinematicMatrixFisher, MatrixFisher
 from hkpd.evaluation.occlusion_response import limb_vertex_masks
 from hkpd.kinematic_tree import BODY_PARENTS, body_joint_index
-from hkpd.prediction.upright_view import UprightView, torso_tilt
+from hkpd.prediction.readings.upright_view import UprightView, torso_tilt
 from hkpd.uncertainty import vertex_uncertainty
 
 SIZE = 128

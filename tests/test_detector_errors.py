@@ -8,7 +8,7 @@ import numpy as np
 
 from hkpd.evaluation.detector_errors import detector_errors
 from hkpd.evaluation.real_photos import AnnotatedPerson
-from hkpd.prediction.keypoint_detector import KeypointDetection
+from hkpd.prediction.detection.keypoint_detector import KeypointDetection
 
 
 class OffsetDetector:

@@ -35,7 +35,7 @@ def test_settings_parse_short_and_long_names() -> None:
 
 def _coco_folder_of_the_shipped_photo(folder: Path) -> Path:
     """A one-person COCO folder: the shipped photo, its keypoints as BlazePose finds them."""
-    from hkpd.prediction.keypoint_detector import KeypointDetector
+    from hkpd.prediction.detection.keypoint_detector import KeypointDetector
 
     with KeypointDetector() as detector:
         detection = detector.detect(str(SHIPPED_PHOTO))

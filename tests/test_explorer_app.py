@@ -141,7 +141,7 @@ class FindsNobodyUnlessBoxed:
         self.calls: list[tuple[bool, object]] = []
 
     def predict(self, image, occluders, evidence=True, bbox=None):
-        from hkpd.prediction.keypoint_detector import NoPersonFoundError
+        from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
 
         self.calls.append((evidence, bbox))
         if bbox is None:

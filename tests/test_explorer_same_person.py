@@ -17,7 +17,7 @@ from test_explorer_double import OcclusionAwareDouble
 from hkpd.explorer.app import ExplorerApp, framing
 from hkpd.explorer.photo_geometry import PhotoPlacement
 from hkpd.explorer.state import MAX_SAME_PERSON_PHOTOS, ExplorerState
-from hkpd.prediction.keypoint_detector import NoPersonFoundError
+from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
 from hkpd.prediction.shape_combination import product_of_gaussians
 
 BASE_STD = 0.08

@@ -24,7 +24,7 @@ from hkpd.explorer.state import MAX_OCCLUDERS, ExplorerState, clamp_box
 from hkpd.explorer.upload import MAX_UPLOAD_BYTES, UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
-from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
+from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
 
 
 def make_state() -> ExplorerState:

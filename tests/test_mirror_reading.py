@@ -11,7 +11,7 @@ from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.coco_keypoints import COCO17_MIRROR_ORDER, COCO17_NAMES
 from hkpd.distributions import BodyDistribution
 from hkpd.network import NetworkConfig
-from hkpd.prediction.mirror_reading import MirrorChoosingReader, mirror_proxy, unmirror_output
+from hkpd.prediction.readings.mirror import MirrorChoosingReader, mirror_proxy, unmirror_output
 from hkpd.proxy import assemble_proxy
 
 SIZE = 64

@@ -21,10 +21,10 @@ from PIL import Image
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.prediction import cli
 from hkpd.prediction.crop import CropTransform
-from hkpd.prediction.exports import to_display_frame
+from hkpd.prediction.detection.keypoint_detector import KeypointDetection, NoPersonFoundError
+from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
+from hkpd.prediction.exports.writers import to_display_frame
 from hkpd.prediction.image_input import load_image
-from hkpd.prediction.keypoint_detector import KeypointDetection, NoPersonFoundError
-from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
 
 SAMPLES = 3
 NUM_VERTICES = 13492
@@ -384,9 +384,9 @@ def test_evidence_false_returns_the_networks_own_output_and_evidence_keeps_it(
 
 def test_the_predictor_keeps_the_reading_of_the_crop_or_of_its_mirror_image(scene, checkpoint):
     from hkpd.network.checkpoint import load_network
-    from hkpd.prediction.mirror_reading import mirror_proxy, unmirror_output
     from hkpd.prediction.predictor import Predictor
     from hkpd.prediction.readings import ReadingConfig
+    from hkpd.prediction.readings.mirror import mirror_proxy, unmirror_output
 
     network, _ = load_network(checkpoint, "cpu")
     detector = TruthDetector(scene.keypoints2d, confidences=np.ones(17))
@@ -447,7 +447,7 @@ def test_an_occluder_removes_its_keypoints_from_the_evidence_not_from_the_detect
 def test_fit_overlay_draws_the_mode_where_its_keypoints_reproject(
     scene, checkpoint, fake_predictor_factory
 ):
-    from hkpd.prediction.fit_overlay import render_fit_overlay
+    from hkpd.prediction.exports.fit_overlay import render_fit_overlay
 
     posterior = fake_predictor_factory(checkpoint, "cpu").predict(scene.image)
     overlay = render_fit_overlay(posterior, size=200)

@@ -11,19 +11,19 @@ import torch
 import trimesh
 
 from hkpd.prediction.cli import UsageError, collect_images, output_names, parse_bbox, parse_formats
-from hkpd.prediction.exports import (
+from hkpd.prediction.exports.overview import draw_colour_bar
+from hkpd.prediction.exports.uncertainty_colours import (
+    VIRIDIS_ANCHORS,
+    UncertaintyColourScale,
+    ramp_colours,
+    vertex_to_face_values,
+)
+from hkpd.prediction.exports.writers import (
     DISPLAY_FROM_CAMERA,
     to_display_frame,
     write_distribution_npz,
     write_json,
     write_mesh,
-)
-from hkpd.prediction.overview import draw_colour_bar
-from hkpd.prediction.uncertainty_colours import (
-    VIRIDIS_ANCHORS,
-    UncertaintyColourScale,
-    ramp_colours,
-    vertex_to_face_values,
 )
 
 

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hkpd.prediction.blazepose_anchors import ssd_anchor_centres
-from hkpd.prediction.blazepose_decoding import (
+from hkpd.prediction.detection.anchors import ssd_anchor_centres
+from hkpd.prediction.detection.decoding import (
     Detections,
     box_iou,
     decode_detections,
@@ -20,7 +20,7 @@ from hkpd.prediction.blazepose_decoding import (
     refine_from_heatmap,
     weighted_nms,
 )
-from hkpd.prediction.blazepose_warp import Region, crop, letterbox_region, person_region
+from hkpd.prediction.detection.warp import Region, crop, letterbox_region, person_region
 
 
 def test_anchor_layout_matches_the_detector_output() -> None:
@@ -148,7 +148,7 @@ def test_landmark_decoding_and_heatmap_refinement() -> None:
 
 
 def test_dropping_the_segmentation_head_keeps_the_other_outputs() -> None:
-    from hkpd.prediction.blazepose_models import (
+    from hkpd.prediction.detection.models import (
         LANDMARK_MODEL,
         SEGMENTATION_OUTPUT,
         TfliteModel,
@@ -176,7 +176,7 @@ SHIPPED_PHOTO = Path(__file__).parents[1] / "assets" / "photos" / "warrior_lunge
 )
 def test_parity_with_the_legacy_mediapipe_solution() -> None:
     from hkpd.prediction import COCO_FROM_BLAZEPOSE, KeypointDetector
-    from hkpd.prediction.mediapipe_reference import MediapipePose
+    from hkpd.prediction.detection.mediapipe_reference import MediapipePose
 
     photos = [SHIPPED_PHOTO, *sorted(DEMO_PHOTOS.glob("*.jpg"))]
     reference, detector = MediapipePose(), KeypointDetector()

@@ -19,8 +19,12 @@ from hkpd.prediction import (
     NoPersonFoundError,
     load_image,
 )
-from hkpd.prediction.blazepose import BLAZEPOSE_LANDMARK_NAMES, PersonCandidate, PoseLandmarks
-from hkpd.prediction.blazepose_warp import Region
+from hkpd.prediction.detection.blazepose import (
+    BLAZEPOSE_LANDMARK_NAMES,
+    PersonCandidate,
+    PoseLandmarks,
+)
+from hkpd.prediction.detection.warp import Region
 
 DEMO_PHOTOS = Path("/work/shared/data/demo_photos")
 COCO_MINI = Path("/work/shared/data/coco_mini")
@@ -281,7 +285,7 @@ def test_detect_all_searches_parts_of_the_photo_and_keeps_each_person_once() -> 
 
 
 def test_tile_bounds_cover_the_photo_with_overlapping_parts() -> None:
-    from hkpd.prediction.detection_boxes import box_iou, tile_bounds
+    from hkpd.prediction.detection.boxes import box_iou, tile_bounds
 
     bounds = tile_bounds(600, 300, 3)
     assert (

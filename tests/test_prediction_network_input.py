@@ -15,7 +15,7 @@ from hkpd.prediction import (
     points_under_boxes,
     prepare_network_input,
 )
-from hkpd.prediction.upright_view import UprightView
+from hkpd.prediction.readings.upright_view import UprightView
 
 DEMO_PHOTO = Path("/work/shared/data/demo_photos/yogait_t5.jpg")
 

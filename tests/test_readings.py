@@ -9,9 +9,9 @@ import torch
 from limb_lean_network import LimbLeanNetwork, rolled_frontal
 from test_upright_reading import LIMBS_ONLY, SIZE, STANDING, proxies_of, turned
 
-from hkpd.prediction.network_lean import LEAN_CANDIDATES_DEGREES
-from hkpd.prediction.proxy_reading import proxy_reading_input
 from hkpd.prediction.readings import LEAN_SEARCH_BATCH, ReadingConfig, ReadingStage
+from hkpd.prediction.readings.lean import LEAN_CANDIDATES_DEGREES
+from hkpd.prediction.readings.proxy_reader import proxy_reading_input
 
 AS_IT_IS = ReadingConfig(mirror=False)
 

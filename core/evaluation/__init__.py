@@ -2,7 +2,7 @@
 the `hkpd-eval` command.
 
 Experiments build on :mod:`hkpd.evaluation.test_set` (a checkpoint's network and the fixed
-synthetic test set) and read the network through :class:`hkpd.prediction.proxy_reading.
+synthetic test set) and read the network through :class:`hkpd.prediction.readings.proxy_reader.
 ProxyReader`, as ``hkpd-eval`` does.
 
 Metric functions return per-example values: metres for 3D metrics (times

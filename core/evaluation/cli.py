@@ -169,11 +169,11 @@ def evaluate_synthetic(
     any-orientation split (``orientation``, e.g.
     :data:`hkpd.synthesis.orientation.ANY_ORIENTATION`), optionally reading leaning people from
     an upright copy and reading every view mirrored too (the reading stage:
-    :class:`hkpd.prediction.proxy_reading.ProxyReader`)."""
+    :class:`hkpd.prediction.readings.proxy_reader.ProxyReader`)."""
     from hkpd.evaluation.synthetic import evaluate_batches
     from hkpd.evaluation.test_set import fixed_batches, network_and_generator
-    from hkpd.prediction.proxy_reading import ProxyReader
     from hkpd.prediction.readings import ReadingConfig
+    from hkpd.prediction.readings.proxy_reader import ProxyReader
 
     network, generator = network_and_generator(checkpoint, poses, device, orientation=orientation)
     network = ProxyReader(
@@ -477,7 +477,7 @@ def _multi_view_shape_report(arguments: argparse.Namespace, device: torch.device
 def _detector_error_table(people: list, arguments: argparse.Namespace) -> str:
     """BlazePose against the human keypoints (people with >= 6 visible keypoints)."""
     from hkpd.evaluation.detector_errors import detector_errors
-    from hkpd.prediction.keypoint_detector import KeypointDetector
+    from hkpd.prediction.detection.keypoint_detector import KeypointDetector
 
     if arguments.coco_split:
         people = [p for p in people if p.image_path.parent.name == arguments.coco_split]
@@ -522,11 +522,11 @@ def occlusion_summary(
     """:func:`hkpd.evaluation.occlusion_response.summarise` for one checkpoint (F optionally
     scaled; or the keypoint-evidence posterior, conditioned on the present input keypoints;
     optionally the network reading every view mirrored too, as the predictor does:
-    :class:`hkpd.prediction.mirror_reading.MirrorChoosingReader`)."""
+    :class:`hkpd.prediction.readings.mirror.MirrorChoosingReader`)."""
     from hkpd.evaluation.occlusion_response import occlusion_response, summarise
     from hkpd.evaluation.test_set import network_and_generator
-    from hkpd.prediction.proxy_reading import ProxyReader
     from hkpd.prediction.readings import ReadingConfig
+    from hkpd.prediction.readings.proxy_reader import ProxyReader
     from hkpd.synthesis.augmentations import AugmentationConfig
 
     network, generator = network_and_generator(
@@ -571,8 +571,8 @@ def evaluate_evidence_synthetic(
     optionally with the network reading every view mirrored too (the predictor's default)."""
     from hkpd.evaluation.evidence_synthetic import evaluate_evidence_batches
     from hkpd.evaluation.test_set import fixed_batches, network_and_generator
-    from hkpd.prediction.proxy_reading import ProxyReader
     from hkpd.prediction.readings import ReadingConfig
+    from hkpd.prediction.readings.proxy_reader import ProxyReader
 
     network, generator = network_and_generator(checkpoint, poses, device)
     reader = ProxyReader(

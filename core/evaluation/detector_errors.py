@@ -18,8 +18,8 @@ import numpy as np
 
 from hkpd.coco_keypoints import COCO17_LEFT_RIGHT_PAIRS, COCO17_NAMES
 from hkpd.evaluation.real_photos import AnnotatedPerson
+from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
 from hkpd.prediction.image_input import ImageInputError
-from hkpd.prediction.keypoint_detector import NoPersonFoundError
 
 CONFIDENCE = 0.6
 OUTLIER_FRACTION = 0.2

@@ -13,8 +13,8 @@ from tqdm import tqdm
 
 from hkpd.evaluation.occlusion_response import OCCLUDED_LIMBS, limb_vertex_masks
 from hkpd.evaluation.real_photos import AnnotatedPerson, silhouette_argument
+from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
 from hkpd.prediction.image_input import ImageInputError
-from hkpd.prediction.keypoint_detector import NoPersonFoundError
 
 LIMB_KEYPOINTS = {
     "left_forearm": (7, 9),

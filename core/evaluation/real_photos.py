@@ -24,8 +24,8 @@ from tqdm import tqdm
 
 from hkpd.camera_conventions import CROP_SIZE
 from hkpd.evaluation.calibration import COVERAGE_LEVELS, point_truth_rank
+from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
 from hkpd.prediction.image_input import ImageInputError
-from hkpd.prediction.keypoint_detector import NoPersonFoundError
 from hkpd.proxy import CONFIDENCE_THRESHOLD
 
 MIN_VISIBLE_KEYPOINTS = 12

@@ -51,7 +51,7 @@ def evaluate_batches(
         seed: seeds the sampling, so repeated evaluations agree exactly.
         pass_crop_keypoints: call ``network(proxy, crop_keypoints=batch.keypoints2d)``, the
             keypoints each crop was framed on (for
-            :class:`hkpd.prediction.proxy_reading.ProxyReader`).
+            :class:`hkpd.prediction.readings.proxy_reader.ProxyReader`).
 
     Returns:
         ``{metric: mean}``: 3D metrics (MPJPE variants, PVE-T-SC, diversity) in millimetres,

@@ -27,18 +27,18 @@ The pieces:
 """
 
 from hkpd.prediction.crop import BOX_CONFIDENCE_THRESHOLD, CropTransform
+from hkpd.prediction.detection.keypoint_detector import (
+    COCO_FROM_BLAZEPOSE,
+    KeypointDetection,
+    KeypointDetector,
+    NoPersonFoundError,
+)
 from hkpd.prediction.image_input import (
     MAX_IMAGE_SIDE,
     MIN_IMAGE_SIDE,
     ImageInputError,
     LoadedImage,
     load_image,
-)
-from hkpd.prediction.keypoint_detector import (
-    COCO_FROM_BLAZEPOSE,
-    KeypointDetection,
-    KeypointDetector,
-    NoPersonFoundError,
 )
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
 from hkpd.prediction.occluders import Occluders, apply_occluders, points_under_boxes

@@ -18,11 +18,11 @@ it writes into ``DIR/<image stem>/``:
 
 With ``--same-person`` the photos show one person, and ``DIR/same_person_shape/`` also gets
 the shape combined from all photos that succeeded (the precision-weighted product of their shape
-Gaussians; :mod:`hkpd.prediction.combined_shape_export` lists its files): the T-pose mesh, the
+Gaussians; :mod:`hkpd.prediction.exports.combined_shape` lists its files): the T-pose mesh, the
 same mesh coloured by shape uncertainty, ``shape.npz`` and ``shape.json``.
 
 Mesh files are in a Y-up display frame (``(x, -y, -z)`` of the camera-aligned body frame; see
-:mod:`hkpd.prediction.exports`). A photo that fails (missing, not an image, no person) is
+:mod:`hkpd.prediction.exports.writers`). A photo that fails (missing, not an image, no person) is
 reported on one line and skipped; the exit status is 1 when any failed, 2 for a usage error or
 a model that cannot be loaded.
 """
@@ -43,8 +43,9 @@ import numpy as np
 import torch
 from PIL import Image
 
-from hkpd.prediction.combined_shape_export import write_combined_shape
-from hkpd.prediction.exports import (
+from hkpd.prediction.exports.combined_shape import write_combined_shape
+from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
+from hkpd.prediction.exports.writers import (
     ARRAY_FORMAT,
     DISPLAY_FRAME_NOTE,
     MESH_FORMATS,
@@ -56,7 +57,6 @@ from hkpd.prediction.exports import (
 )
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
 from hkpd.prediction.shape_combination import combine_shape_tensors
-from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
 
 if TYPE_CHECKING:
     from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
@@ -351,8 +351,9 @@ def _write_overview(
     scale: UncertaintyColourScale,
     caption: str,
 ) -> Path:
-    """Write the overview picture (:func:`hkpd.prediction.overview.make_overview`) to ``path``."""
-    from hkpd.prediction.overview import make_overview
+    """Write the overview picture (:func:`hkpd.prediction.exports.overview.make_overview`) to
+    ``path``."""
+    from hkpd.prediction.exports.overview import make_overview
 
     prepared = posterior.network_input
     detection = prepared.detection
@@ -444,8 +445,8 @@ def _posterior_summary(posterior: BodyPosterior, evidence: bool) -> dict[str, ob
 
 
 def _expected_errors() -> tuple[type[BaseException], ...]:
+    from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
     from hkpd.prediction.image_input import ImageInputError
-    from hkpd.prediction.keypoint_detector import NoPersonFoundError
 
     return ImageInputError, NoPersonFoundError, ValueError, OSError
 

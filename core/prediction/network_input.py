@@ -19,9 +19,9 @@ from PIL import Image
 
 from hkpd.camera_conventions import CROP_SIZE
 from hkpd.prediction.crop import CropTransform
+from hkpd.prediction.detection.keypoint_detector import KeypointDetection, KeypointDetector
 from hkpd.prediction.evidence_rule import NO_OCCLUDERS, evidence_mask
 from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
-from hkpd.prediction.keypoint_detector import KeypointDetection, KeypointDetector
 from hkpd.prediction.occluders import OccluderBoxes, Occluders, apply_occluders
 from hkpd.proxy import DEFAULT_IMAGE_PROXY, build_proxy
 

@@ -100,7 +100,7 @@ class BodyPosterior:
         mirror_read: the network's reading (for an evidence posterior: the reading its fit
             started from) came from the left-right mirror image of the crop, mapped back,
             because its body fitted the shown keypoints better than the reading of the crop
-            itself (:mod:`hkpd.prediction.mirror_reading`).
+            itself (:mod:`hkpd.prediction.readings.mirror`).
     """
 
     distribution: BodyDistribution

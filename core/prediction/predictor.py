@@ -7,9 +7,9 @@ By default it then conditions the network's distribution on the detected keypoin
 distribution is the prior, the confident keypoints that no occluder covers are the evidence.
 The network reads the crop through the reading stage (:mod:`hkpd.prediction.readings`): as it
 is and mirrored, and, when the torso leans more than ``ReadingConfig.upright_start_degrees``,
-also from a copy of the crop turned upright (:mod:`hkpd.prediction.upright_view`); the fit
+also from a copy of the crop turned upright (:mod:`hkpd.prediction.readings.upright_view`); the fit
 starts from both answers. When the evidence shows no torso, the lean is searched for
-(:mod:`hkpd.prediction.network_lean`). ``evidence=False`` returns the network's own
+(:mod:`hkpd.prediction.readings.lean`). ``evidence=False`` returns the network's own
 distribution (the paper's method); for a leaning person that is its answer on the upright copy,
 mapped back to the photo (on held-out photos this reading alone cut the network's error by a
 third), unless ``upright=False``.
@@ -35,13 +35,13 @@ from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_key
 from hkpd.devices import resolve_device
 from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
+from hkpd.prediction.detection.keypoint_detector import KeypointDetector
 from hkpd.prediction.image_input import LoadedImage
-from hkpd.prediction.keypoint_detector import KeypointDetector
 from hkpd.prediction.network_input import NetworkInput, prepare_network_input
 from hkpd.prediction.occluders import OccluderBoxes, Occluders
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
-from hkpd.prediction.upright_view import UprightView
+from hkpd.prediction.readings.upright_view import UprightView
 from hkpd.proxy import build_proxy
 
 SHIPPED_MODEL = ("models", "hkpd_hierarchical.pt")
@@ -157,7 +157,7 @@ class Predictor:
                 with ``evidence`` the fit starts from both answers, without it the upright
                 copy's answer is the network's posterior. When the evidence shows no torso
                 (nor a stand-in for it), the lean is that of the body the network reads
-                (:mod:`hkpd.prediction.network_lean`). False reads the crop as it is.
+                (:mod:`hkpd.prediction.readings.lean`). False reads the crop as it is.
             silhouette: ``(H, W)`` bool mask of the person, original-photo pixels: only for
                 networks that read a silhouette instead of edges (the proxy ablation's
                 ``network.config.image_proxy == "silhouette"``), which need one.

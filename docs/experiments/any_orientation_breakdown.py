@@ -26,8 +26,8 @@ from hkpd.camera_conventions import weak_perspective_project
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
 from hkpd.evaluation.test_set import fixed_batches, network_and_generator
-from hkpd.prediction.proxy_reading import ProxyReader
 from hkpd.prediction.readings import ReadingConfig
+from hkpd.prediction.readings.proxy_reader import ProxyReader
 from hkpd.synthesis.orientation import ANY_ORIENTATION
 
 GROUPS = ((0.0, 20.0), (20.0, 45.0), (45.0, 90.01))

@@ -4,7 +4,7 @@ On the fixed synthetic test splits (upright and any orientation, read upright as
 ``hkpd-eval --upright-reading`` does), this script prints the mean 2D mode error (px at 256) of:
 
 1. **Mirrored reading.** The proxy flipped left to right and read, the reading mapped back
-   (:mod:`hkpd.prediction.mirror_reading`: heatmaps of left and right eyes, ears and limb
+   (:mod:`hkpd.prediction.readings.mirror`: heatmaps of left and right eyes, ears and limb
    keypoints swapped; relative rotations of left and right joints swapped and conjugated by the
    reflection ``diag(-1, 1, 1)``, the global rotation conjugated likewise, the camera's x shift
    negated). A mirror-symmetric network would read both equally well.
@@ -13,9 +13,9 @@ On the fixed synthetic test splits (upright and any orientation, read upright as
    rotations projected back onto SO(3) and their cameras averaged.
 3. **Chosen by fit.** Of the reading as it is and the mirrored one, the one whose most likely
    body projects closest to the keypoints the heatmaps show
-   (:func:`hkpd.prediction.network_lean.mode_keypoint_misfits`; no ground truth is used to
+   (:func:`hkpd.prediction.readings.lean.mode_keypoint_misfits`; no ground truth is used to
    choose; the predictor's default since 2026-12-04,
-   :class:`hkpd.prediction.mirror_reading.MirrorChoosingReader`); and the best of the two in
+   :class:`hkpd.prediction.readings.mirror.MirrorChoosingReader`); and the best of the two in
    hindsight.
 4. **Perspective projection.** The network's weak-perspective camera ``[s, tx, ty]`` read as a
    perspective camera at the synthetic crop's known focal length (depth ``2 f / (S s)``,
@@ -43,10 +43,10 @@ from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import CROP_SIZE, ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.test_set import fixed_batches, network_and_generator
-from hkpd.prediction.mirror_reading import mirror_proxy, unmirror_output
-from hkpd.prediction.network_lean import mode_keypoint_misfits
-from hkpd.prediction.proxy_reading import ProxyReader
 from hkpd.prediction.readings import ReadingConfig
+from hkpd.prediction.readings.lean import mode_keypoint_misfits
+from hkpd.prediction.readings.mirror import mirror_proxy, unmirror_output
+from hkpd.prediction.readings.proxy_reader import ProxyReader
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
 from hkpd.synthesis.orientation import ANY_ORIENTATION

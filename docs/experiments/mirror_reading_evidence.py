@@ -5,7 +5,7 @@ On the fixed upright synthetic test split with BlazePose-like keypoint noise on 
 
 1. the network's reading of the proxy as it is (the predictor until 2026-12-04),
 2. the reading kept by the mirror reading (as it is or mirrored, whichever mode fits the shown
-   keypoints better: :class:`hkpd.prediction.mirror_reading.MirrorChoosingReader`, the
+   keypoints better: :class:`hkpd.prediction.readings.mirror.MirrorChoosingReader`, the
    predictor's default since 2026-12-04),
 3. both readings as two starts, the fit keeping the one of lower negative log posterior (as it
    does with a leaning person's crop and upright copy),
@@ -30,8 +30,8 @@ from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
 from hkpd.evaluation.test_set import fixed_batches, network_and_generator
-from hkpd.prediction.mirror_reading import MirrorChoosingReader
 from hkpd.prediction.predictor import float64_body
+from hkpd.prediction.readings.mirror import MirrorChoosingReader
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
 
 METRICS = {

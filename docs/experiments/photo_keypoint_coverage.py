@@ -25,8 +25,8 @@ from hkpd.camera_conventions import CROP_SIZE
 from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.evaluation.calibration import point_truth_rank
 from hkpd.evaluation.real_photos import AnnotatedPerson, load_coco_people
+from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
 from hkpd.prediction.image_input import ImageInputError
-from hkpd.prediction.keypoint_detector import NoPersonFoundError
 from hkpd.prediction.predictor import Predictor
 from hkpd.proxy import CONFIDENCE_THRESHOLD
 

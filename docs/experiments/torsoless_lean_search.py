@@ -3,14 +3,14 @@ reading fits the keypoints shown.
 
 The upright reading (:mod:`hkpd.prediction.readings`) turns a view with no torso in its
 heatmaps by the lean of the network's own reading, read again twice
-(:mod:`hkpd.prediction.network_lean`). On the any-orientation synthetic test split those views
+(:mod:`hkpd.prediction.readings.lean`). On the any-orientation synthetic test split those views
 (5 %) stay far off. This script reads each of them at twelve candidate leans (every 30°, 0° =
 as it is), maps every reading back to the crop's frame, and keeps the one whose most likely
 body projects closest to the observed heatmap peaks (mean pixel distance over the observed
 keypoints; no ground truth is used to choose). It prints the mean 2D mode error (px at 256) of:
 today's reading, the reading turned by the true lean, the best of the twelve in hindsight, and
 the one chosen by fit. The upright reading and the predictor now choose so
-(:mod:`hkpd.prediction.network_lean`; docs/model_history.md, section 5).
+(:mod:`hkpd.prediction.readings.lean`; docs/model_history.md, section 5).
 
     python docs/experiments/torsoless_lean_search.py assets/models/hkpd_hierarchical.pt \\
         --poses poses.npz
@@ -31,9 +31,9 @@ from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
 from hkpd.evaluation.test_set import fixed_batches, network_and_generator
-from hkpd.prediction.proxy_reading import ProxyReader, proxy_reading_input
 from hkpd.prediction.readings import ReadingConfig
-from hkpd.prediction.upright_view import torso_tilt
+from hkpd.prediction.readings.proxy_reader import ProxyReader, proxy_reading_input
+from hkpd.prediction.readings.upright_view import torso_tilt
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
 from hkpd.synthesis.orientation import ANY_ORIENTATION

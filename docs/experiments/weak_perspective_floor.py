@@ -26,9 +26,9 @@ from hkpd.camera_conventions import CROP_SIZE, pixels_to_ndc
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
 from hkpd.evaluation.synthetic import targets_of
 from hkpd.evaluation.test_set import fixed_batches, network_and_generator
-from hkpd.prediction.proxy_reading import ProxyReader
 from hkpd.prediction.readings import ReadingConfig
-from hkpd.prediction.upright_view import torso_tilt
+from hkpd.prediction.readings.proxy_reader import ProxyReader
+from hkpd.prediction.readings.upright_view import torso_tilt
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
 from hkpd.synthesis.batch import TrainingBatch

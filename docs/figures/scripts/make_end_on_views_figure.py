@@ -28,9 +28,9 @@ from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.coco_keypoints import COCO17_LIMBS
 from hkpd.evaluation.test_set import fixed_batches, network_and_generator
-from hkpd.prediction.overview import BACKGROUND, TEXT, _font
-from hkpd.prediction.proxy_reading import ProxyReader
+from hkpd.prediction.exports.overview import BACKGROUND, TEXT, _font
 from hkpd.prediction.readings import ReadingConfig
+from hkpd.prediction.readings.proxy_reader import ProxyReader
 from hkpd.synthesis.orientation import ANY_ORIENTATION
 
 FIGURE = Path(__file__).resolve().parents[1] / "end_on_views.png"

@@ -18,7 +18,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from hkpd.prediction import Predictor
-from hkpd.prediction.overview import (
+from hkpd.prediction.exports.overview import (
     BACKGROUND,
     TEXT,
     _font,
@@ -26,7 +26,7 @@ from hkpd.prediction.overview import (
     draw_skeletons,
     render_uncertainty_views,
 )
-from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
+from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
 
 FIGURE = Path(__file__).resolve().parents[1] / "evidence_posterior.png"
 HEIGHT = 300

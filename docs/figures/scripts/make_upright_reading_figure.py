@@ -19,7 +19,7 @@ from PIL import Image, ImageDraw
 
 from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.prediction import Predictor
-from hkpd.prediction.overview import BACKGROUND, TEXT, _font, draw_skeletons
+from hkpd.prediction.exports.overview import BACKGROUND, TEXT, _font, draw_skeletons
 
 FIGURE = Path(__file__).resolve().parents[1] / "upright_reading.png"
 SIZE = 360

@@ -4,7 +4,7 @@ suppression, and the landmark model's 33 landmarks with their visibility.
 Units: the detector works in its 224-pixel input, and this module returns its results
 normalised to that input (``[0, 1]``, x right, y down, 0 at the input's left/top edge). The
 landmark model returns landmarks in its 256-pixel crop; they are normalised to the crop the same
-way. :mod:`hkpd.prediction.blazepose_warp` maps either back to the photo.
+way. :mod:`hkpd.prediction.detection.warp` maps either back to the photo.
 """
 
 from __future__ import annotations

@@ -5,10 +5,10 @@ tracking", 2020):
 
 1. **Person detector** (:meth:`BlazePose.find_people`): the photo letterboxed into 224×224,
    scaled to [-1, 1]; per anchor a box, four keypoints and a score
-   (:mod:`hkpd.prediction.blazepose_decoding`); kept above ``min_detection_confidence`` and merged
+   (:mod:`hkpd.prediction.detection.decoding`); kept above ``min_detection_confidence`` and merged
    by weighted non-maximum suppression. Each person's landmark region is the square around the
    hip centre whose side is 1.25 × the diameter of the full-body circle, rotated so the body's
-   up is the crop's up (:func:`hkpd.prediction.blazepose_warp.person_region`).
+   up is the crop's up (:func:`hkpd.prediction.detection.warp.person_region`).
 2. **Landmark model** (:meth:`BlazePose.landmarks`): that region resampled to 256×256 in [0, 1];
    39 landmarks (the first 33 are BlazePose's), refined on their heatmaps, mapped back to the
    photo; visibility is the sigmoid of the visibility logit; a pose-presence score below
@@ -23,14 +23,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hkpd.prediction.blazepose_anchors import ssd_anchor_centres
-from hkpd.prediction.blazepose_decoding import (
+from hkpd.prediction.detection.anchors import ssd_anchor_centres
+from hkpd.prediction.detection.decoding import (
     decode_detections,
     decode_landmarks,
     sigmoid,
     weighted_nms,
 )
-from hkpd.prediction.blazepose_models import (
+from hkpd.prediction.detection.models import (
     DEFAULT_THREADS,
     DETECTOR_MODEL,
     LANDMARK_MODEL,
@@ -39,7 +39,7 @@ from hkpd.prediction.blazepose_models import (
     blazepose_model_path,
     drop_output,
 )
-from hkpd.prediction.blazepose_warp import (
+from hkpd.prediction.detection.warp import (
     HALF_PIXEL,
     Region,
     crop,

@@ -4,7 +4,7 @@ A person's left-right mirror image is just as plausible a photo of a person, and
 trained on mirrored poses, reads both about equally well on average (the shipped run 17: 4.83 px
 against 4.83 px on the upright synthetic split). But not equally well *per photo*: read both
 ways, the reading whose most likely body projects closer to the keypoints the heatmaps show
-(:func:`hkpd.prediction.network_lean.mode_keypoint_misfits`; no ground truth involved) is the
+(:func:`hkpd.prediction.readings.lean.mode_keypoint_misfits`; no ground truth involved) is the
 better one more often than not. Keeping it took run 17 from 4.83 to 4.76 px upright and from
 7.61 to 7.44 px on the any-orientation split read upright
 (``docs/runs/orientation_finetune_17/mirror_and_perspective_readings.md``).
@@ -30,7 +30,7 @@ from hkpd.body import BodyModel
 from hkpd.coco_keypoints import COCO17_MIRROR_ORDER
 from hkpd.distributions import BodyDistribution
 from hkpd.mirror_symmetry import BODY_MIRROR_PERMUTATION, reflect_rotations
-from hkpd.prediction.network_lean import mode_keypoint_misfits
+from hkpd.prediction.readings.lean import mode_keypoint_misfits
 from hkpd.proxy import NUM_KEYPOINTS
 from hkpd.proxy.heatmaps import heatmap_peaks
 

@@ -1,21 +1,22 @@
 """The reading stage: how the network reads a crop (as it is, mirrored, upright, lean search).
 
 One implementation for photos (:class:`hkpd.prediction.Predictor`) and for proxies that are
-already made (the synthetic test sets: :class:`hkpd.prediction.proxy_reading.ProxyReader`):
+already made (the synthetic test sets: :class:`hkpd.prediction.readings.proxy_reader.ProxyReader`):
 
 1. **Mirror reading** (:attr:`ReadingConfig.mirror`): every proxy is read as it is and as its
    left-right mirror image, and the reading whose most likely body fits the shown keypoints
-   more closely is kept (:class:`hkpd.prediction.mirror_reading.MirrorChoosingReader`).
+   more closely is kept (:class:`hkpd.prediction.readings.mirror.MirrorChoosingReader`).
 2. **Upright copy**: an example whose shown torso leans more than
    :attr:`ReadingConfig.upright_start_degrees` from upright
-   (:func:`hkpd.prediction.upright_view.torso_tilt`) is also read from a copy turned upright
-   (:class:`hkpd.prediction.upright_view.UprightView`), and that reading is mapped back to the
-   crop's frame.
+   (:func:`hkpd.prediction.readings.upright_view.torso_tilt`) is also read from a copy turned
+   upright (:class:`hkpd.prediction.readings.upright_view.UprightView`), and that reading is
+   mapped back to the crop's frame.
 3. **Lean search** (:attr:`ReadingConfig.lean_search`): an example whose shown keypoints show
-   no torso is read at every lean of :data:`hkpd.prediction.network_lean.LEAN_CANDIDATES_DEGREES`
+   no torso is read at every lean of :data:`hkpd.prediction.readings.lean.LEAN_CANDIDATES_DEGREES`
    and at the lean of its own reading; the turned reading whose body fits the shown keypoints
-   best is its upright copy, if it fits them :data:`~hkpd.prediction.network_lean.TURNED_FIT_MARGIN`
-   closer than the reading as it is (:mod:`hkpd.prediction.network_lean`).
+   best is its upright copy, if it fits them
+   :data:`~hkpd.prediction.readings.lean.TURNED_FIT_MARGIN` closer than the reading as it is
+   (:mod:`hkpd.prediction.readings.lean`).
 
 The stage does not know where proxies come from: the caller gives a :class:`TurnedProxy`, the
 proxy of an example seen through a view (for photos found again on the turned RGB crop, for
@@ -34,14 +35,14 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.distributions import BodyDistribution
-from hkpd.prediction.mirror_reading import MirrorChoosingReader
-from hkpd.prediction.network_lean import (
+from hkpd.prediction.readings.lean import (
     LEAN_CANDIDATES_DEGREES,
     TURNED_FIT_MARGIN,
     mode_keypoint_misfits,
     mode_torso_tilts,
 )
-from hkpd.prediction.upright_view import UprightView, torso_tilt
+from hkpd.prediction.readings.mirror import MirrorChoosingReader
+from hkpd.prediction.readings.upright_view import UprightView, torso_tilt
 
 LEAN_SEARCH_BATCH = 32
 """Turned copies read per network call in the lean search (a photo's 11-12 candidates: one)."""
@@ -57,7 +58,7 @@ class ReadingConfig:
         mirror: read every proxy as it is and mirrored, keeping the reading whose most likely
             body fits the shown keypoints more closely; False reads each once.
         lean_search: for examples whose shown keypoints show no torso, search the lean to read
-            them at (:mod:`hkpd.prediction.network_lean`); False reads them as they are.
+            them at (:mod:`hkpd.prediction.readings.lean`); False reads them as they are.
     """
 
     upright_start_degrees: float = 30.0

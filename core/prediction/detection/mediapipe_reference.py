@@ -1,6 +1,6 @@
 """The legacy MediaPipe BlazePose solution, kept only as the reference for parity checks.
 
-hkpd runs BlazePose itself (:mod:`hkpd.prediction.blazepose`); this module wraps
+hkpd runs BlazePose itself (:mod:`hkpd.prediction.detection.blazepose`); this module wraps
 ``mediapipe.solutions.pose.Pose`` (``static_image_mode=True``, ``model_complexity=1``, the same
 two models) so that ``benchmarks/bench_keypoint_parity.py`` and the parity test can compare the
 two where mediapipe is installed. mediapipe is NOT a dependency of hkpd: constructing
@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hkpd.prediction.detection_boxes import search_region, validated_box
+from hkpd.prediction.detection.boxes import search_region, validated_box
 from hkpd.prediction.image_input import LoadedImage, load_image
 
 

@@ -29,7 +29,7 @@ import torch
 from hkpd.body import BodyModel
 from hkpd.distributions import BodyDistribution
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
-from hkpd.prediction.upright_view import UprightView
+from hkpd.prediction.readings.upright_view import UprightView
 from hkpd.proxy import NUM_KEYPOINTS, assemble_proxy, proxy_image_planes
 from hkpd.proxy.heatmaps import heatmap_peaks
 

@@ -1,17 +1,18 @@
 """The lean to read a view at when its keypoints show no torso.
 
-:func:`hkpd.prediction.upright_view.torso_tilt` reads a person's lean off the observed shoulder,
-hip, knee and head keypoints. When neither end of the torso (nor a stand-in) is observed, e.g. a
-view showing only the legs and arms, or a torso covered by an occluder, it has no answer. Read as
-they are, such views of the any-orientation synthetic test split (5 %) were 42 px from the truth
-against 9 px for the rest; turned by the lean of the network's own reading, read again twice,
-28.5 px. The network reads leaning bodies badly, so its own lean is a poor guide; but a reading
-of a copy turned near upright fits the keypoints that *are* shown far better than the others.
-So such a view is read as it is, at every lean of :data:`LEAN_CANDIDATES_DEGREES` and at the lean
-of its own reading (:func:`mode_torso_tilts`), each reading is mapped back to the crop, and the
-one whose most likely body projects closest to the shown keypoints wins
-(:func:`mode_keypoint_misfits`): 16.0 px on those views with the shipped network, as good as
-turning by the true lean (16.1 px; ``docs/experiments/torsoless_lean_search.py``).
+:func:`hkpd.prediction.readings.upright_view.torso_tilt` reads a person's lean off the observed
+shoulder, hip, knee and head keypoints. When neither end of the torso (nor a stand-in) is
+observed, e.g. a view showing only the legs and arms, or a torso covered by an occluder, it has
+no answer. Read as they are, such views of the any-orientation synthetic test split (5 %) were
+42 px from the truth against 9 px for the rest; turned by the lean of the network's own reading,
+read again twice, 28.5 px. The network reads leaning bodies badly, so its own lean is a poor
+guide; but a reading of a copy turned near upright fits the keypoints that *are* shown far
+better than the others. So such a view is read as it is, at every lean of
+:data:`LEAN_CANDIDATES_DEGREES` and at the lean of its own reading (:func:`mode_torso_tilts`),
+each reading is mapped back to the crop, and the one whose most likely body projects closest to
+the shown keypoints wins (:func:`mode_keypoint_misfits`): 16.0 px on those views with the
+shipped network, as good as turning by the true lean (16.1 px;
+``docs/experiments/torsoless_lean_search.py``).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from hkpd.body import BodyModel
 from hkpd.body.root_relative import pelvis_relative_body
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import BodyDistribution
-from hkpd.prediction.upright_view import torso_tilt
+from hkpd.prediction.readings.upright_view import torso_tilt
 
 LEAN_CANDIDATES_DEGREES = tuple(range(30, 360, 30))
 """Leans (degrees, clockwise on screen) a torso-less view is also read at, besides as it is."""
@@ -48,8 +49,8 @@ def mode_torso_tilts(
 
     Returns:
         ``B`` angles in radians (clockwise on screen, as
-        :func:`hkpd.prediction.upright_view.torso_tilt`), None where the body's torso projects
-        to a point (seen exactly end-on).
+        :func:`hkpd.prediction.readings.upright_view.torso_tilt`), None where the body's torso
+        projects to a point (seen exactly end-on).
     """
     keypoints, _ = pelvis_relative_body(
         body, output.shape_mean, output.pose_distribution().mode, output.global_orient

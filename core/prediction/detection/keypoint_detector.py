@@ -1,7 +1,7 @@
 """COCO-17 2D keypoints of the people in a photo, from BlazePose.
 
 :class:`KeypointDetector` runs BlazePose's own two models with hkpd's pipeline
-(:mod:`hkpd.prediction.blazepose`; the "full" landmark model, whose weights ship in
+(:mod:`hkpd.prediction.detection.blazepose`; the "full" landmark model, whose weights ship in
 ``hkpd.assets/blazepose``: nothing is downloaded). BlazePose finds 33 landmarks per person; the
 17 COCO keypoints are a subset (:data:`COCO_FROM_BLAZEPOSE`), and each keypoint's confidence is
 BlazePose's landmark visibility in [0, 1].
@@ -25,15 +25,14 @@ from typing import Protocol
 
 import numpy as np
 
-from hkpd.prediction.blazepose import (
+from hkpd.prediction.detection.blazepose import (
     POSE_PRESENCE_THRESHOLD,
     REGION_SCALE,
     BlazePose,
     PersonCandidate,
     PoseLandmarks,
 )
-from hkpd.prediction.blazepose_warp import Region
-from hkpd.prediction.detection_boxes import (
+from hkpd.prediction.detection.boxes import (
     MIN_SEARCH_REGION,
     SEARCH_BOX_PADDING,
     box_iou,
@@ -43,6 +42,7 @@ from hkpd.prediction.detection_boxes import (
     tile_bounds,
     validated_box,
 )
+from hkpd.prediction.detection.warp import Region
 from hkpd.prediction.image_input import LoadedImage, load_image
 
 __all__ = [

@@ -12,10 +12,10 @@ from limb_lean_network import LimbLeanNetwork, rolled_frontal
 from hkpd.body import BodyModel
 from hkpd.distributions import BodyDistribution
 from hkpd.network import DistributionNetwork, NetworkConfig
-from hkpd.prediction.network_lean import mode_torso_tilts
-from hkpd.prediction.proxy_reading import ProxyReader
 from hkpd.prediction.readings import ReadingConfig
-from hkpd.prediction.upright_view import UprightView, torso_tilt
+from hkpd.prediction.readings.lean import mode_torso_tilts
+from hkpd.prediction.readings.proxy_reader import ProxyReader
+from hkpd.prediction.readings.upright_view import UprightView, torso_tilt
 from hkpd.proxy import assemble_proxy
 from hkpd.proxy.heatmaps import heatmap_peaks, joint_heatmaps
 

@@ -25,8 +25,11 @@ from PIL import Image, ImageDraw, ImageFont
 
 from hkpd.coco_keypoints import COCO17_LIMBS
 from hkpd.prediction.crop import CropTransform
+from hkpd.prediction.exports.uncertainty_colours import (
+    UncertaintyColourScale,
+    vertex_to_face_values,
+)
 from hkpd.prediction.image_input import LoadedImage
-from hkpd.prediction.uncertainty_colours import UncertaintyColourScale, vertex_to_face_values
 from hkpd.rendering import Lighting, MeshRenderer
 
 CONFIDENT = 0.5

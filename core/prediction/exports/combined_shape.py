@@ -5,7 +5,7 @@ Into one folder :func:`write_combined_shape` writes:
 - ``tpose.<fmt>``: the T-pose mesh of the combined mean shape, per mesh format asked for (Y-up
   display frame, pelvis at the origin, like the other mesh files);
 - ``tpose_uncertainty.<fmt>``: the same mesh coloured by per-vertex *shape* uncertainty on the
-  fixed colour scale of :mod:`hkpd.prediction.uncertainty_colours`;
+  fixed colour scale of :mod:`hkpd.prediction.exports.uncertainty_colours`;
 - ``shape.npz`` (with ``npz`` among the formats): ``betas_mean (K,)``, ``betas_std (K,)``,
   ``photo_betas_mean (N, K)``, ``photo_betas_std (N, K)``, ``baseline_betas_mean (K,)``,
   ``tpose_vertices (V, 3)`` (camera-aligned body frame), ``uncertainty (V,)`` metres,
@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from hkpd.prediction.exports import (
+from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
+from hkpd.prediction.exports.writers import (
     ARRAY_FORMAT,
     DISPLAY_FRAME_NOTE,
     MESH_FORMATS,
@@ -30,7 +31,6 @@ from hkpd.prediction.exports import (
     write_mesh,
 )
 from hkpd.prediction.shape_combination import CombinedShape
-from hkpd.prediction.uncertainty_colours import UncertaintyColourScale
 
 METHOD_NOTE = (
     "product: precision-weighted product of the photos' diagonal shape Gaussians "
