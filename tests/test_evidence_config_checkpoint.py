@@ -96,3 +96,18 @@ def test_malformed_settings_make_the_checkpoint_unreadable(tmp_path, plain_check
     torch.save(payload, tmp_path / "malformed.pt")
     with pytest.raises(CheckpointError, match="malformed evidence settings"):
         read_checkpoint(tmp_path / "malformed.pt")
+
+
+def test_tools_that_rewrite_weights_keep_the_stored_settings(tmp_path, plain_checkpoint) -> None:
+    from hkpd.evaluation.test_set import stored_evidence_settings
+    from hkpd.training.average_weights import average_checkpoints
+    from hkpd.training.export import export_weights
+
+    tuned = store_evidence_config(plain_checkpoint, tmp_path / "tuned.pt", TUNED.to_dict())
+    exported = export_weights(tuned, tmp_path / "exported.pt")
+    averaged = average_checkpoints([tuned, exported], tmp_path / "averaged.pt")
+    for path in (tuned, exported, averaged):
+        assert stored_evidence_settings(path) == TUNED, path
+    # hkpd-eval's synthetic evidence rows read the same settings the predictor does
+    assert stored_evidence_settings(plain_checkpoint) == EvidenceConfig()
+    assert Predictor.from_pretrained(exported, device="cpu").evidence_config == TUNED

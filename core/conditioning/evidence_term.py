@@ -6,7 +6,8 @@ states the solver evaluates into residuals in units of their noise (sigmas), gro
 (e.g. one keypoint's two coordinates) is what the robust loss ``ρ_t`` acts on, through the
 group's squared norm. The solver (:mod:`hkpd.conditioning.levenberg_marquardt`) and the Laplace
 step (:mod:`hkpd.conditioning.keypoint_fit`) know terms only through this interface, so a new
-kind of evidence is a new class here, not a change there (``docs/architecture.md``, "Add an evidence term").
+kind of evidence is a new class here, not a change there (``docs/architecture.md``, "Add an
+evidence term").
 
 The prior (the network's distribution, tempered, and the weak global-rotation and camera
 priors) is not a term: it reads the unknowns rather than the posed body, every fit has exactly

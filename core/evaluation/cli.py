@@ -545,11 +545,12 @@ def occlusion_summary(
     )
     condition = None
     if evidence:
-        from hkpd.conditioning import EvidenceConfig
         from hkpd.evaluation.evidence_synthetic import condition_batch
+        from hkpd.evaluation.test_set import stored_evidence_settings
         from hkpd.prediction.predictor import float64_body
 
-        body64, config = float64_body(generator.body), EvidenceConfig()
+        body64 = float64_body(generator.body)
+        config = stored_evidence_settings(checkpoint)
         size = generator.config.image_size
 
         def condition(output, keypoints, present):
@@ -570,7 +571,11 @@ def evaluate_evidence_synthetic(
     keypoint noise (:func:`hkpd.evaluation.evidence_synthetic.evaluate_evidence_batches`),
     optionally with the network reading every view mirrored too (the predictor's default)."""
     from hkpd.evaluation.evidence_synthetic import evaluate_evidence_batches
-    from hkpd.evaluation.test_set import fixed_batches, network_and_generator
+    from hkpd.evaluation.test_set import (
+        fixed_batches,
+        network_and_generator,
+        stored_evidence_settings,
+    )
     from hkpd.prediction.readings import ReadingConfig
     from hkpd.prediction.readings.proxy_reader import ProxyReader
 
@@ -579,7 +584,10 @@ def evaluate_evidence_synthetic(
         network, ReadingConfig(mirror=mirror_reading), upright=False, body=generator.body
     )
     batches = fixed_batches(generator, count)
-    return evaluate_evidence_batches(reader, batches, generator.body, num_samples=samples)
+    config = stored_evidence_settings(checkpoint)
+    return evaluate_evidence_batches(
+        reader, batches, generator.body, config=config, num_samples=samples
+    )
 
 
 if __name__ == "__main__":

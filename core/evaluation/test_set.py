@@ -15,8 +15,9 @@ from pathlib import Path
 import torch
 
 from hkpd.body import BodyModel
+from hkpd.conditioning import EvidenceConfig
 from hkpd.network import DistributionNetwork
-from hkpd.network.checkpoint import load_network
+from hkpd.network.checkpoint import load_network, read_checkpoint, stored_evidence_config
 from hkpd.poses import pose_source
 from hkpd.synthesis.augmentations import AugmentationConfig
 from hkpd.synthesis.batch import TrainingBatch
@@ -32,6 +33,19 @@ TEST_SET_SEED = 2021
 
 TEST_BATCH_SIZE = 50
 """Examples rendered per batch."""
+
+
+def stored_evidence_settings(checkpoint: Path) -> EvidenceConfig:
+    """The evidence settings stored with ``checkpoint`` (``hkpd-tune-evidence --write-to``; the
+    defaults when it stores none), as :meth:`hkpd.prediction.Predictor.from_pretrained` takes
+    them, so the synthetic evidence rows and the photo rows score the same posterior.
+
+    Raises:
+        FileNotFoundError, CheckpointError: as :func:`hkpd.network.checkpoint.read_checkpoint`.
+        ValueError: the stored settings are not valid, naming the file.
+    """
+    payload = read_checkpoint(checkpoint)
+    return EvidenceConfig.from_dict(stored_evidence_config(payload), str(checkpoint))
 
 
 def network_and_generator(

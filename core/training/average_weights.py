@@ -17,7 +17,12 @@ from pathlib import Path
 
 import torch
 
-from hkpd.network.checkpoint import CheckpointError, load_network, save_checkpoint
+from hkpd.network.checkpoint import (
+    CheckpointError,
+    load_network,
+    save_checkpoint,
+    stored_evidence_config,
+)
 
 
 def average_state_dicts(states: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
@@ -78,7 +83,7 @@ def average_checkpoints(paths: list[Path], out: Path, half_precision: bool = Fal
     last = payloads[-1]
     return save_checkpoint(
         out, network, architecture, last["step"], last["train_config"], last["samples_seen"],
-        half_precision=half_precision,
+        half_precision=half_precision, evidence_config=stored_evidence_config(last) or None,
     )  # fmt: skip
 
 

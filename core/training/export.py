@@ -9,11 +9,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from hkpd.network.checkpoint import load_network, save_checkpoint
+from hkpd.network.checkpoint import load_network, save_checkpoint, stored_evidence_config
 
 
 def export_weights(checkpoint: Path, out: Path) -> Path:
-    """Write ``checkpoint``'s network as float16 weights at ``out`` (loads as float32)."""
+    """Write ``checkpoint``'s network as float16 weights at ``out`` (loads as float32), with the
+    evidence settings stored with it."""
     network, payload = load_network(checkpoint)
     return save_checkpoint(
         out,
@@ -23,6 +24,7 @@ def export_weights(checkpoint: Path, out: Path) -> Path:
         payload["train_config"],
         payload["samples_seen"],
         half_precision=True,
+        evidence_config=stored_evidence_config(payload) or None,
     )
 
 

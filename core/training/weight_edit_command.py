@@ -12,7 +12,7 @@ from pathlib import Path
 
 import torch
 
-from hkpd.network.checkpoint import load_network, save_checkpoint
+from hkpd.network.checkpoint import load_network, save_checkpoint, stored_evidence_config
 from hkpd.poses import pose_source
 from hkpd.synthesis.generator import SyntheticDataConfig, SyntheticDataGenerator
 
@@ -77,10 +77,13 @@ def load_with_proxies(
 
 
 def save_edited(out: Path, network: torch.nn.Module, payload: dict) -> None:
-    """Write ``network`` with the loaded checkpoint's step, configs and sample count."""
+    """Write ``network`` with the loaded checkpoint's step, configs, sample count and stored
+    evidence settings (after editing concentrations, re-tune them: ``hkpd-tune-evidence
+    --write-to``)."""
     save_checkpoint(
         out, network, payload["network_config"], payload["step"],
         payload["train_config"], payload["samples_seen"],
+        evidence_config=stored_evidence_config(payload) or None,
     )  # fmt: skip
 
 
