@@ -7,7 +7,7 @@ import math
 import numpy as np
 import torch
 from limb_lean_network import LimbLeanNetwork, rolled_frontal
-from test_upright_reading import LIMBS_ONLY, SIZE, STANDING, proxies_of, turned
+from test_proxy_reader import LIMBS_ONLY, SIZE, STANDING, proxies_of, turned
 
 from hkpd.prediction.readings import LEAN_SEARCH_BATCH, ReadingConfig, ReadingStage
 from hkpd.prediction.readings.lean import LEAN_CANDIDATES_DEGREES
