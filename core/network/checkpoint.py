@@ -16,6 +16,7 @@ A checkpoint is one ``torch.save`` file holding plain data only (loadable with
 | ``samples_seen`` | training examples seen |
 | ``rng`` | random states (torch CPU and CUDA, numpy, python) at the save, so a resumed run
   continues bit-exactly (absent in exported weights) |
+| ``rng_per_rank`` | under ``torchrun``: every rank's random states, by rank (absent alone) |
 | ``checksum`` | SHA-256 of the model tensors' bytes (format 2): a damaged file is refused |
 
 Format 1 files (no checksum) still load.
@@ -52,12 +53,14 @@ def save_checkpoint(
     samples_seen: int,
     optimizer: torch.optim.Optimizer | None = None,
     half_precision: bool = False,
+    rank_random_states: list[dict[str, Any]] | None = None,
 ) -> Path:
     """Write a checkpoint atomically (to a temporary name, then renamed).
 
     Args:
         half_precision: store float tensors as float16 and no optimiser state (for shipping
             small weights; not for resuming).
+        rank_random_states: every rank's :func:`random_states` of a multi-process run.
     """
     state = model.state_dict()
     if half_precision:
@@ -77,6 +80,8 @@ def save_checkpoint(
     if optimizer is not None and not half_precision:
         payload["optimizer"] = optimizer.state_dict()
         payload["rng"] = random_states()
+        if rank_random_states is not None:
+            payload["rng_per_rank"] = rank_random_states
     payload["checksum"] = model_checksum(payload["model"])
     partial = path.with_name(path.name + ".partial")
     try:

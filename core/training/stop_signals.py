@@ -1,0 +1,45 @@
+"""Ctrl-C and SIGTERM as a request to stop after the current training step.
+
+A signal that interrupted a step halfway would leave weights one step ahead of the step
+counter, and under ``torchrun`` it would leave the other ranks waiting inside a collective.
+So the handlers only note the request; the loop looks at it after each step (all ranks
+together, :func:`hkpd.training.distributed.average_and_any`), saves a checkpoint and stops.
+A second Ctrl-C stops at once (SIGTERM never does: torchrun sends one after the terminal's
+SIGINT, and the job is then already stopping).
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from types import FrameType
+
+
+class StopSignals:
+    """Within a ``with`` block, SIGINT and SIGTERM set :attr:`requested` instead of raising.
+
+    Outside the main thread (where Python cannot install handlers) nothing changes. The
+    previous handlers come back when the block ends.
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: dict[int, object] = {}
+
+    def _note(self, signum: int, frame: FrameType | None) -> None:
+        if self.requested and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __enter__(self) -> StopSignals:
+        if threading.current_thread() is threading.main_thread():
+            for signum in self.SIGNALS:
+                self._previous[signum] = signal.signal(signum, self._note)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
+        self._previous.clear()
