@@ -5,7 +5,7 @@ counter, and under ``torchrun`` it would leave the other ranks waiting inside a 
 So the handlers only note the request; the loop looks at it after each step (all ranks
 together, :func:`hkpd.training.distributed.average_and_any`), saves a checkpoint and stops.
 A second Ctrl-C stops at once (SIGTERM never does: torchrun sends one after the terminal's
-SIGINT, and the job is then already stopping).
+SIGINT to the same processes, which are then already stopping).
 """
 
 from __future__ import annotations
@@ -25,12 +25,14 @@ class StopSignals:
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self) -> None:
-        self.requested = False
+        self.requested = self._interrupted = False
         self._previous: dict[int, object] = {}
 
     def _note(self, signum: int, frame: FrameType | None) -> None:
-        if self.requested and signum == signal.SIGINT:
-            raise KeyboardInterrupt
+        if signum == signal.SIGINT:
+            if self._interrupted:
+                raise KeyboardInterrupt
+            self._interrupted = True
         self.requested = True
 
     def __enter__(self) -> StopSignals:
