@@ -135,7 +135,7 @@ def test_a_launch_is_read_from_torchruns_environment() -> None:
 
 def test_ctrl_c_asks_the_loop_to_stop_after_its_step() -> None:
     """The first SIGINT or SIGTERM only sets the request (every rank finishes its step, then
-    they stop together); a second Ctrl-C stops at once; the old handlers come back."""
+    they stop together); alone, a second Ctrl-C stops at once; the old handlers come back."""
     before = signal.getsignal(signal.SIGINT)
     with StopSignals() as signals:
         os.kill(os.getpid(), signal.SIGTERM)
@@ -144,3 +144,7 @@ def test_ctrl_c_asks_the_loop_to_stop_after_its_step() -> None:
         with pytest.raises(KeyboardInterrupt):
             os.kill(os.getpid(), signal.SIGINT)
     assert signal.getsignal(signal.SIGINT) is before
+    with StopSignals(force_on_second_interrupt=False) as signals:  # under torchrun
+        for _ in range(3):
+            os.kill(os.getpid(), signal.SIGINT)
+        assert signals.requested

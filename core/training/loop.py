@@ -296,7 +296,7 @@ class TrainingRun:
         self.deadline = None
         if self.config.max_minutes is not None:
             self.deadline = self.started + 60.0 * self.config.max_minutes
-        self.signals = StopSignals()
+        self.signals = StopSignals(force_on_second_interrupt=not setup.launch.distributed)
         self.stop_requested = self.out_of_time = False
         self.window_start, self.window_samples = self.started, 0
         self.progress = tqdm(
@@ -409,10 +409,12 @@ class TrainingRun:
             self.progress.write(line)
 
     def run(self) -> TrainingResult:
-        """Train to ``steps`` (or ``max_minutes``, or Ctrl-C / SIGTERM), then save and validate."""
+        """Train to ``steps`` (or ``max_minutes``, or Ctrl-C / SIGTERM), then save and validate.
+
+        The stop handlers stay in place until the run is saved: under torchrun every worker
+        gets the terminal's Ctrl-C and then torchrun's copy of it.
+        """
         config, setup = self.config, self.setup
-        stream = _batch_stream(setup)
-        setup.trained_module.train()
         launch = setup.launch
         if launch.distributed:
             self.say(
@@ -420,29 +422,17 @@ class TrainingRun:
                 f"{launch.world_size * config.batch_size} a step, learning rate "
                 f"{config.learning_rate:g} (samples counted over all processes)"
             )
-        try:
-            with self.signals:
-                while setup.step < config.steps:
-                    terms, rate = self.step(next(stream))
-                    self._after_step(terms, rate)
-                    if self.stop_requested or self.out_of_time:
-                        break
-        except KeyboardInterrupt:  # a second Ctrl-C, or one outside the loop's handlers
-            if launch.distributed:
-                raise  # mid-step: the other ranks cannot meet this one in a checkpoint
-            self.stop_requested = True
-        finally:
-            self.progress.close()
-            stream.close()
-        interrupted = self.stop_requested
-        if interrupted:
-            self.say(f"interrupted at step {setup.step}; saving {setup.checkpoint_path}")
-        self.save()
-        if not interrupted and self.is_main:
-            self.last_validation = self.validate()
-            print(f"final (step {setup.step}): " + _format_metrics(self.last_validation))
-        if self.is_main:
-            self.draw_curves()
+        with self.signals:
+            self._train_steps()
+            interrupted = self.stop_requested
+            if interrupted:
+                self.say(f"interrupted at step {setup.step}; saving {setup.checkpoint_path}")
+            self.save()
+            if not interrupted and self.is_main:
+                self.last_validation = self.validate()
+                print(f"final (step {setup.step}): " + _format_metrics(self.last_validation))
+            if self.is_main:
+                self.draw_curves()
         if self.board is not None:
             self.board.close()
         return TrainingResult(
@@ -450,6 +440,25 @@ class TrainingRun:
             time.perf_counter() - self.started, self.last_validation, interrupted,
             self.out_of_time and not interrupted and setup.step < config.steps,
         )  # fmt: skip
+
+    def _train_steps(self) -> None:
+        """Steps until ``steps``, the clock, or a stop request, all ranks at the same step."""
+        config, setup = self.config, self.setup
+        stream = _batch_stream(setup)
+        setup.trained_module.train()
+        try:
+            while setup.step < config.steps:
+                terms, rate = self.step(next(stream))
+                self._after_step(terms, rate)
+                if self.stop_requested or self.out_of_time:
+                    break
+        except KeyboardInterrupt:  # a second Ctrl-C alone, or one before the handlers
+            if setup.launch.distributed:
+                raise  # mid-step: the other ranks cannot meet this one in a checkpoint
+            self.stop_requested = True
+        finally:
+            self.progress.close()
+            stream.close()
 
     def _after_step(self, terms: dict, rate: float) -> None:
         """Log, validate and checkpoint on their schedules (logs and validation on rank 0)."""

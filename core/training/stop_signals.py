@@ -4,8 +4,9 @@ A signal that interrupted a step halfway would leave weights one step ahead of t
 counter, and under ``torchrun`` it would leave the other ranks waiting inside a collective.
 So the handlers only note the request; the loop looks at it after each step (all ranks
 together, :func:`hkpd.training.distributed.average_and_any`), saves a checkpoint and stops.
-A second Ctrl-C stops at once (SIGTERM never does: torchrun sends one after the terminal's
-SIGINT to the same processes, which are then already stopping).
+Alone, a second Ctrl-C stops at once. Under torchrun it does not: every worker gets the
+terminal's SIGINT and then torchrun's copy of it (torchrun kills workers that do not stop
+within its own time limit).
 """
 
 from __future__ import annotations
@@ -20,17 +21,22 @@ class StopSignals:
 
     Outside the main thread (where Python cannot install handlers) nothing changes. The
     previous handlers come back when the block ends.
+
+    Args:
+        force_on_second_interrupt: a second SIGINT raises KeyboardInterrupt (SIGTERM never
+            does).
     """
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-    def __init__(self) -> None:
+    def __init__(self, force_on_second_interrupt: bool = True) -> None:
+        self.force_on_second_interrupt = force_on_second_interrupt
         self.requested = self._interrupted = False
         self._previous: dict[int, object] = {}
 
     def _note(self, signum: int, frame: FrameType | None) -> None:
         if signum == signal.SIGINT:
-            if self._interrupted:
+            if self._interrupted and self.force_on_second_interrupt:
                 raise KeyboardInterrupt
             self._interrupted = True
         self.requested = True
