@@ -59,7 +59,8 @@ class TrainConfig:
         joints3d_loss_from: step at which the 3D joint loss starts (stage 3); -1 never.
         device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
         amp: mixed precision on CUDA (ignored on CPU).
-        seed: seeds the data stream and the network initialisation.
+        seed: seeds the data stream and the network initialisation (under torchrun, rank r
+            draws the data stream of seed + r; every rank starts from the same weights).
         log_every: steps between CSV log rows.
         val_every: steps between validations (0: only at the end).
         val_size: validation examples (a fixed synthetic set from the pose bank's val split).
