@@ -14,7 +14,10 @@
 #   HKPD_IMAGE_SIZE       proxy side in pixels (default 256, the paper's)
 #   HKPD_WIDTH            ResNet-18 base width (default 48: fp16 weights of 20 MB fit the 25 MB
 #                         committed-checkpoint limit; 64 is the paper's full width, 30 MB)
-#   HKPD_BATCH_SIZE       examples per step (default 64)
+#   HKPD_BATCH_SIZE       examples per step and process (default 64)
+#   HKPD_PROCESSES        training processes (default: every GPU torch sees, 1 on the CPU);
+#                         more than 1 trains under torchrun with DistributedDataParallel, one
+#                         GPU each, so a step takes HKPD_BATCH_SIZE x HKPD_PROCESSES examples
 #   HKPD_INIT_WEIGHTS     weights to continue from (an earlier session's export); empty starts
 #                         afresh with the paper's staged losses
 #   HKPD_TRAIN_FLAGS      extra hkpd-train flags, appended last so they override the above
@@ -39,6 +42,21 @@ export PYTHONUNBUFFERED=1
 mkdir -p "$OUT"
 started=$(date +%s)
 stamp() { echo "[gpu_session +$(($(date +%s) - started)) s] $*"; }
+
+if [ -z "${HKPD_PROCESSES:-}" ]; then
+    if [ "$DEVICE" = cpu ]; then
+        HKPD_PROCESSES=1
+    else
+        HKPD_PROCESSES=$("$PYTHON" -c "import torch; print(max(torch.cuda.device_count(), 1))")
+    fi
+fi
+PROCESSES=$HKPD_PROCESSES
+if [ "$PROCESSES" -gt 1 ]; then
+    train=("$PYTHON" -m torch.distributed.run --standalone --nproc-per-node "$PROCESSES"
+        -m hkpd.training.cli)
+else
+    train=("$PYTHON" -m hkpd.training.cli)
+fi
 
 if [ ! -f poses.npz ]; then
     echo "gpu_session: poses.npz is missing; build it here with" >&2
@@ -65,14 +83,14 @@ import platform, torch, numpy, hkpd
 print(f"python {platform.python_version()}, torch {torch.__version__}, numpy {numpy.__version__}")
 print(f"hkpd from {hkpd.__file__}")
 if torch.cuda.is_available():
-    print(f"GPU {torch.cuda.get_device_name(0)}, {torch.cuda.get_device_properties(0).total_memory / 2**30:.0f} GiB")
+    print(f"{torch.cuda.device_count()} x GPU {torch.cuda.get_device_name(0)}, {torch.cuda.get_device_properties(0).total_memory / 2**30:.0f} GiB")
 else:
     print("no GPU visible to torch")
 EOF
 command -v nvidia-smi >/dev/null && nvidia-smi --query-gpu=name,driver_version,memory.total \
     --format=csv >>"$OUT/environment.txt" || true
 
-# 3. Throughput of synthetic data on this device (docs/benchmarks.md's "synthetic data on a GPU").
+# 3. Throughput of synthetic data on one device (docs/benchmarks.md's "synthetic data on a GPU").
 if [ "$BENCH" = 1 ]; then
     stamp "benchmark: synthetic data on $DEVICE"
     (cd benchmarks && "$PYTHON" bench_synthesis.py --device "$DEVICE" --poses ../poses.npz \
@@ -88,9 +106,9 @@ else
     stages=(--samples-loss-from 1500 --joints3d-loss-from 3500 --learning-rate 2e-4)
 fi
 rm -rf "$RUN"
-stamp "training for $MINUTES min: ${IMAGE_SIZE} px, width $WIDTH, batch $BATCH, on $DEVICE"
+stamp "training for $MINUTES min: ${IMAGE_SIZE} px, width $WIDTH, batch $BATCH x $PROCESSES process(es), on $DEVICE"
 # shellcheck disable=SC2086  # HKPD_TRAIN_FLAGS is a list of flags
-"$PYTHON" -m hkpd.training.cli --quiet --out "$RUN" --poses poses.npz --device "$DEVICE" \
+"${train[@]}" --quiet --out "$RUN" --poses poses.npz --device "$DEVICE" \
     --image-size "$IMAGE_SIZE" --backbone-base-width "$WIDTH" --batch-size "$BATCH" \
     --steps 1000000 --max-minutes "$MINUTES" --concentration-gain \
     --limb-occlusion-probability 0.4 --val-every 1000 --val-size 200 --checkpoint-every 1000 \

@@ -16,6 +16,7 @@ A checkpoint is one ``torch.save`` file holding plain data only (loadable with
 | ``samples_seen`` | training examples seen |
 | ``rng`` | random states (torch CPU and CUDA, numpy, python) at the save, so a resumed run
   continues bit-exactly (absent in exported weights) |
+| ``rng_per_rank`` | under ``torchrun``: every rank's random states, by rank (absent alone) |
 | ``checksum`` | SHA-256 of the model tensors' bytes (format 2): a damaged file is refused |
 | ``evidence_config`` | the evidence settings tuned for these weights (format 3, optional): a
   plain dict that :meth:`hkpd.conditioning.EvidenceConfig.from_dict` reads; absent, the
@@ -63,6 +64,7 @@ def save_checkpoint(
     optimizer: torch.optim.Optimizer | None = None,
     half_precision: bool = False,
     evidence_config: EvidenceSettings | None = None,
+    rank_random_states: list[dict[str, Any]] | None = None,
 ) -> Path:
     """Write a checkpoint atomically (to a temporary name, then renamed).
 
@@ -71,6 +73,7 @@ def save_checkpoint(
             small weights; not for resuming).
         evidence_config: evidence settings tuned for these weights (``EvidenceConfig.to_dict()``),
             stored under :data:`EVIDENCE_CONFIG_KEY`; None stores none.
+        rank_random_states: every rank's :func:`random_states` of a multi-process run.
     """
     state = model.state_dict()
     if half_precision:
@@ -90,6 +93,8 @@ def save_checkpoint(
     if optimizer is not None and not half_precision:
         payload["optimizer"] = optimizer.state_dict()
         payload["rng"] = random_states()
+        if rank_random_states is not None:
+            payload["rng_per_rank"] = rank_random_states
     if evidence_config is not None:
         payload[EVIDENCE_CONFIG_KEY] = dict(evidence_config)
     payload["checksum"] = model_checksum(payload["model"])

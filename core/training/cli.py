@@ -6,6 +6,10 @@ Examples::
     hkpd-train --poses poses.npz --backgrounds ~/lsun --out runs/full
     hkpd-train --out runs/full --resume          # continue where it stopped
     hkpd-train --out runs/full --resume --max-minutes 8   # train for 8 minutes, then checkpoint
+    torchrun --standalone --nproc-per-node 4 -m hkpd.training.cli --out runs/4gpu ...
+        # four processes (one GPU each), DistributedDataParallel; --batch-size per process
+
+Under torchrun, rank 0 alone prints; the other ranks report only errors of their own.
 """
 
 from __future__ import annotations
@@ -13,8 +17,12 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hkpd.training.config import TrainConfig, add_config_arguments, config_from_arguments
+
+if TYPE_CHECKING:
+    from hkpd.training.distributed import Launch
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,23 +40,53 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _report(error: Exception, launch: Launch, during_setup: bool) -> None:
+    """Print ``error`` once per run under torchrun, with the rank when it is not rank 0.
+
+    A setup error is the same on every rank of a machine, so rank 0 and the first rank of each
+    other machine print it; a non-finite loss stops every rank together and rank 0 prints it;
+    any other error is printed by the rank it happened on.
+    """
+    shared = during_setup or isinstance(error, FloatingPointError)
+    if launch.is_main:
+        print(f"hkpd-train: error: {error}", file=sys.stderr)
+    elif not shared or (during_setup and launch.local_rank == 0):
+        print(f"hkpd-train: rank {launch.rank}: error: {error}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     arguments = build_parser().parse_args(argv)
+    from hkpd.training.distributed import Launch, detect_launch
+
+    launch, during_setup = Launch(), True
     try:
+        launch = detect_launch()
         if arguments.resume and arguments.config is None:
             out = arguments.out or TrainConfig().out
             if (Path(out) / "config.json").is_file():
                 arguments.config = Path(out) / "config.json"
         config = config_from_arguments(arguments)
         from hkpd.cpu_allocator import keep_freed_memory
-        from hkpd.training.loop import train
+        from hkpd.training.distributed import end_process_group
+        from hkpd.training.loop import TrainingRun, build_training
 
         keep_freed_memory()  # a long CPU job: reuse big blocks instead of re-faulting them
 
-        result = train(config, resume=arguments.resume, show_progress=not arguments.quiet)
+        setup = build_training(config, resume=arguments.resume, launch=launch)
+        during_setup, result = False, None
+        try:
+            result = TrainingRun(setup, show_progress=not arguments.quiet).run()
+        finally:
+            end_process_group(wait_for_all=result is not None)
     except (OSError, ValueError, FloatingPointError) as error:
-        print(f"hkpd-train: error: {error}", file=sys.stderr)
+        _report(error, launch, during_setup)
         return 2
+    except KeyboardInterrupt:  # a second Ctrl-C under torchrun: no checkpoint of this step
+        if launch.is_main:
+            print("hkpd-train: stopped at once; --resume continues from the last checkpoint")
+        return 130
+    if not launch.is_main:
+        return 130 if result.interrupted else 0
     state = "interrupted" if result.interrupted else "finished"
     if result.out_of_time:
         state = f"stopped at --max-minutes {config.max_minutes:g}"

@@ -34,12 +34,15 @@ class TrainConfig:
         poses: pose bank ``.npz`` from ``hkpd-poses build``; None uses the procedural prior.
         backgrounds: optional folder of background images (procedural clutter otherwise).
         steps: optimiser steps in total.
-        batch_size: examples per step.
+        batch_size: examples per step and process: under ``torchrun`` with N processes a step
+            takes the averaged gradient of N x batch_size examples (the global batch).
         image_size: proxy side in pixels (256 as in the paper; smaller for quick tests).
         pose_head: ``"hierarchical"`` (the paper's f_hier) or ``"independent"`` (f_indep).
         backbone_base_width: channels of the first ResNet-18 stage (64 is the paper's; 32 or 16
             for CPU training).
         learning_rate: Adam learning rate (at the first step, if ``final_learning_rate`` is set).
+            It applies to the global batch as it is: N processes with batch B take the steps
+            one process takes with batch N x B at the same rate (no automatic scaling).
         final_learning_rate: None keeps ``learning_rate`` constant; a value decays the rate to it
             along a half cosine over the ``steps`` of the run (:func:`learning_rate_at`), e.g. to
             anneal a model at the end of its training.
@@ -56,7 +59,8 @@ class TrainConfig:
         joints3d_loss_from: step at which the 3D joint loss starts (stage 3); -1 never.
         device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
         amp: mixed precision on CUDA (ignored on CPU).
-        seed: seeds the data stream and the network initialisation.
+        seed: seeds the data stream and the network initialisation (under torchrun, rank r
+            draws the data stream of seed + r; every rank starts from the same weights).
         log_every: steps between CSV log rows.
         val_every: steps between validations (0: only at the end).
         val_size: validation examples (a fixed synthetic set from the pose bank's val split).
@@ -104,6 +108,9 @@ class TrainConfig:
             choice), or ``silhouette`` / ``rgb`` (the proxy ablation;
             :data:`hkpd.proxy.IMAGE_PROXIES`). A silhouette model needs a person mask for every
             photo it reads.
+        world_size: processes training together, from torchrun's ``WORLD_SIZE`` (not a flag:
+            each launch fills it in; 1 without torchrun). A run resumes with the world size it
+            was started with.
     """
 
     out: Path = Path("runs/hkpd")
@@ -143,6 +150,7 @@ class TrainConfig:
     keypoint_outlier_probability: float = 0.0
     shape_from_nll_only: bool = False
     image_proxy: str = DEFAULT_IMAGE_PROXY
+    world_size: int = 1
 
     def validate(self) -> TrainConfig:
         """Check every field's range; returns ``self``.
@@ -152,7 +160,7 @@ class TrainConfig:
         """
         at_least = {"steps": 1, "batch_size": 1, "log_every": 1, "checkpoint_every": 1,
                     "val_every": 0, "val_size": 1, "data_workers": 0, "num_samples": 1,
-                    "image_size": 32, "backbone_base_width": 1}  # fmt: skip
+                    "image_size": 32, "backbone_base_width": 1, "world_size": 1}  # fmt: skip
         for name, low in at_least.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
@@ -311,6 +319,10 @@ def _plain_text(text: str) -> str:
     return text.replace("``", "").replace("%", "%%")  # argparse formats help with %
 
 
+LAUNCH_FIELDS = ("world_size",)
+"""Fields the launch fills in (torchrun's environment), not flags."""
+
+
 def add_config_arguments(parser: argparse.ArgumentParser) -> None:
     """Add one ``--flag`` per :class:`TrainConfig` field (default: not given).
 
@@ -319,6 +331,8 @@ def add_config_arguments(parser: argparse.ArgumentParser) -> None:
     hints = typing.get_type_hints(TrainConfig)
     descriptions = field_descriptions()
     for field in dataclasses.fields(TrainConfig):
+        if field.name in LAUNCH_FIELDS:
+            continue
         flag = "--" + field.name.replace("_", "-")
         members = [m for m in _members(hints[field.name]) if m is not type(None)]
         kind = members[0]

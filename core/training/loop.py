@@ -6,15 +6,16 @@ step. Every ``log_every`` steps a row goes to ``train.csv``; every ``val_every``
 network is evaluated on a fixed synthetic validation set (``val.csv``) and the curves PNG is
 redrawn; checkpoints go to ``last.pt`` (atomically), which ``--resume`` continues from exactly:
 the data stream is indexed by step, so a resumed run sees the batches it would have seen.
+
+Under ``torchrun`` every process runs this loop on its own data stream with the network in
+DistributedDataParallel (:mod:`hkpd.training.distributed`); rank 0 alone writes the run folder.
 """
 
 from __future__ import annotations
 
 import math
-import signal
-import threading
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import torch
@@ -27,6 +28,7 @@ from hkpd.network import DistributionNetwork
 from hkpd.network.checkpoint import (
     load_initial_weights,
     load_weights,
+    random_states,
     read_checkpoint,
     restore_random_states,
     save_checkpoint,
@@ -43,9 +45,21 @@ from hkpd.synthesis.parallel import GeneratorSpec, ParallelBatches
 from hkpd.training.config import TrainConfig, learning_rate_at
 from hkpd.training.csv_logs import append_row, check_log, complete_row, truncate_log
 from hkpd.training.curves import plot_training_curves
+from hkpd.training.distributed import (
+    Launch,
+    average_and_any,
+    detect_launch,
+    end_process_group,
+    gather_to_main,
+    launch_device,
+    rank_seed,
+    start_process_group,
+    wrap_for_training,
+)
 from hkpd.training.losses import compute_losses
 from hkpd.training.prefetch import Prefetcher
 from hkpd.training.schedule import LossSchedule, LossStage, LossWeights
+from hkpd.training.stop_signals import StopSignals
 
 CHECKPOINT_NAME = "last.pt"
 LOGS = ("train.csv", "val.csv")
@@ -98,19 +112,6 @@ def _check_paths(config: TrainConfig) -> None:
         raise FileNotFoundError(f"background folder {config.backgrounds} does not exist")
 
 
-def _stop_on_sigterm() -> None:
-    """Treat SIGTERM (and SIGINT, even where a background launch ignored it) like Ctrl-C: the
-    loop then saves a checkpoint and stops cleanly."""
-    if threading.current_thread() is not threading.main_thread():
-        return
-
-    def interrupt(signum, frame) -> None:
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGTERM, interrupt)
-    signal.signal(signal.SIGINT, interrupt)
-
-
 def _tensorboard_writer(out: Path):
     """A TensorBoard writer logging into ``out/tensorboard``."""
     try:
@@ -123,9 +124,10 @@ def _tensorboard_writer(out: Path):
 
 
 def _check_resumable(
-    payload: dict, network_config: NetworkConfig, config: TrainConfig, path: Path
+    payload: dict, network_config: NetworkConfig, config: TrainConfig, path: Path, launch: Launch
 ) -> None:
-    """Refuse a resume that cannot continue: another architecture, or a finished run.
+    """Refuse a resume that cannot continue: another architecture, a finished run, or another
+    number of processes (whose data streams and random states the checkpoint does not hold).
 
     Raises:
         ValueError: with what to do instead.
@@ -147,6 +149,14 @@ def _check_resumable(
             f"--resume: the run in {path.parent} already finished ({int(payload['step'])} of "
             f"--steps {config.steps}); give a larger --steps to train it further"
         )
+    saved_world = int(payload["train_config"].get("world_size", 1))
+    if saved_world != launch.world_size:
+        raise ValueError(
+            f"--resume: the run in {path.parent} trained with {saved_world} process(es), this "
+            f"launch has {launch.world_size}; resume it with torchrun --nproc-per-node "
+            f"{saved_world} (or without torchrun for 1), or start a new run from its weights "
+            f"with --init-weights {path}"
+        )
 
 
 @dataclass
@@ -163,26 +173,38 @@ class TrainingSetup:
     schedule: LossSchedule
     data_config: SyntheticDataConfig
     val_poses: PoseSource
+    launch: Launch = field(default_factory=Launch)
+    model: torch.nn.Module | None = None
     step: int = 0
     samples_seen: int = 0
+
+    @property
+    def trained_module(self) -> torch.nn.Module:
+        """What a training step calls: the network, or its DistributedDataParallel wrapper."""
+        return self.network if self.model is None else self.model
 
     @property
     def checkpoint_path(self) -> Path:
         return self.out / CHECKPOINT_NAME
 
 
-def build_training(config: TrainConfig, resume: bool = False) -> TrainingSetup:
+def build_training(
+    config: TrainConfig, resume: bool = False, launch: Launch | None = None
+) -> TrainingSetup:
     """Check the config and the paths, build data, network and optimiser, and resume.
 
     A refused resume (another architecture, a finished run, a foreign log) writes nothing.
+    Under torchrun (``launch``, default: :func:`~hkpd.training.distributed.detect_launch`)
+    this joins the process group after the checks, and only rank 0 writes the run folder.
 
     Raises:
         FileNotFoundError: a data path (pose bank, backgrounds, resume checkpoint) is missing.
         ValueError: a flag out of range, or a resume that cannot continue.
     """
-    config.validate()
+    launch = detect_launch() if launch is None else launch
+    config = replace(config.validate(), world_size=launch.world_size)
     _check_paths(config)
-    device = resolve_device(config.device)
+    device = launch_device(resolve_device(config.device), launch)
     out = Path(config.out)
     checkpoint_path = out / CHECKPOINT_NAME
     if resume and not checkpoint_path.is_file():
@@ -193,21 +215,25 @@ def build_training(config: TrainConfig, resume: bool = False) -> TrainingSetup:
     payload = None
     if resume:
         payload = read_checkpoint(checkpoint_path, map_location=device)
-        _check_resumable(payload, network_config, config, checkpoint_path)
+        _check_resumable(payload, network_config, config, checkpoint_path, launch)
         for log in LOGS:
             check_log(out / log)
-    out.mkdir(parents=True, exist_ok=True)
-    config.save(out / "config.json")
+    if launch.is_main:
+        out.mkdir(parents=True, exist_ok=True)
+        config.save(out / "config.json")
+    start_process_group(launch, device)
     torch.manual_seed(config.seed)
     network = DistributionNetwork(network_config).to(device)
     if config.shape_from_nll_only and hasattr(network.head, "detach_shape_input"):
         network.head.detach_shape_input = True  # the pose streams' shape inputs too
     if config.init_weights is not None and not resume:
         load_initial_weights(network, config.init_weights, device)
+    if launch.rank > 0:  # the same initial weights everywhere, then each rank's own draws
+        torch.manual_seed(rank_seed(config.seed, launch.rank))
     setup = TrainingSetup(
         config, device, out, BodyModel().to(device), network_config, network,
         torch.optim.Adam(network.parameters(), lr=config.learning_rate), build_schedule(config),
-        config.data_config(), val_poses,
+        config.data_config(), val_poses, launch, wrap_for_training(network, launch, device),
     )  # fmt: skip
     if payload is not None:
         _resume(setup, payload)
@@ -219,71 +245,91 @@ def _resume(setup: TrainingSetup, payload: dict) -> None:
     load_weights(setup.network, payload["model"], setup.out / CHECKPOINT_NAME)
     setup.optimizer.load_state_dict(payload["optimizer"])
     setup.step, setup.samples_seen = int(payload["step"]), int(payload["samples_seen"])
-    for log in LOGS:
-        truncate_log(setup.out / log, setup.step)
-    if "rng" in payload:  # checkpoints before format 2 did not keep them
+    if setup.launch.is_main:
+        for log in LOGS:
+            truncate_log(setup.out / log, setup.step)
+    if setup.launch.distributed:
+        restore_random_states(payload["rng_per_rank"][setup.launch.rank])
+    elif "rng" in payload:  # checkpoints before format 2 did not keep them
         restore_random_states(payload["rng"])
 
 
 def _batch_stream(setup: TrainingSetup):
     """Training batches from ``setup.step`` on: worker processes, or a background thread."""
     config = setup.config
+    seed = rank_seed(config.seed, setup.launch.rank)
     if config.data_workers > 0 and setup.device.type == "cpu":
         spec = GeneratorSpec(
             config.poses, "train", setup.data_config, config.backgrounds, config.pose_mix()
         )
         return ParallelBatches(
-            spec, config.batch_size, config.seed, start=setup.step, workers=config.data_workers
+            spec, config.batch_size, seed, start=setup.step, workers=config.data_workers
         )
     poses = pose_source(config.poses, "train", config.pose_mix())
     generator = SyntheticDataGenerator(
         poses, setup.data_config, setup.device, config.backgrounds, body=setup.body
     )
-    return Prefetcher(SyntheticBatches(generator, config.batch_size, config.seed, setup.step))
+    return Prefetcher(SyntheticBatches(generator, config.batch_size, seed, setup.step))
 
 
 class TrainingRun:
     """One run's loop: :meth:`step`, :meth:`log`, :meth:`validate`, :meth:`save`, :meth:`run`.
 
+    Under torchrun every rank runs it; :meth:`step` and :meth:`save` are the points where the
+    ranks meet, :meth:`log` and :meth:`validate` happen on rank 0 alone.
+
     Args:
         setup: from :func:`build_training`.
-        show_progress: draw a progress bar.
+        show_progress: draw a progress bar (rank 0 only).
     """
 
     def __init__(self, setup: TrainingSetup, show_progress: bool = True) -> None:
         self.setup = setup
         self.config = setup.config
-        self.board = _tensorboard_writer(setup.out) if self.config.tensorboard else None
+        self.is_main = setup.launch.is_main
+        use_board = self.config.tensorboard and self.is_main
+        self.board = _tensorboard_writer(setup.out) if use_board else None
         self.use_amp = self.config.amp and setup.device.type == "cuda"
         self.validation_set: list | None = None
         self.last_validation: dict[str, float] = {}
         self.started = time.perf_counter()
+        self.deadline = None
+        if self.config.max_minutes is not None:
+            self.deadline = self.started + 60.0 * self.config.max_minutes
+        self.signals = StopSignals(force_on_second_interrupt=not setup.launch.distributed)
+        self.stop_requested = self.out_of_time = False
         self.window_start, self.window_samples = self.started, 0
         self.progress = tqdm(
-            total=self.config.steps, initial=setup.step, disable=not show_progress,
-            unit="step", dynamic_ncols=True,
+            total=self.config.steps, initial=setup.step,
+            disable=not (show_progress and self.is_main), unit="step", dynamic_ncols=True,
         )  # fmt: skip
 
     def step(self, batch) -> tuple[dict[str, torch.Tensor], float]:
-        """One optimiser step on ``batch``; returns the loss terms and the learning rate."""
+        """One optimiser step on ``batch``; returns the loss terms (averaged over the ranks)
+        and the learning rate, and notes whether any rank asks to stop."""
         setup = self.setup
         weights = setup.schedule.weights_at(setup.step)
         with torch.autocast(setup.device.type, dtype=torch.bfloat16, enabled=self.use_amp):
-            output = setup.network(batch.proxy)
+            output = setup.trained_module(batch.proxy)
         terms = compute_losses(
             output, batch, setup.body, weights, self.config.num_samples,
             shape_from_nll_only=self.config.shape_from_nll_only,
         )  # fmt: skip
         setup.optimizer.zero_grad(set_to_none=True)
-        terms["total"].backward()
+        terms["total"].backward()  # DistributedDataParallel averages the gradients here
         torch.nn.utils.clip_grad_norm_(setup.network.parameters(), 10.0)
         rate = learning_rate_at(setup.step, self.config)
         for group in setup.optimizer.param_groups:
             group["lr"] = rate
         setup.optimizer.step()
         setup.step += 1
-        setup.samples_seen += batch.batch_size
-        self.window_samples += batch.batch_size
+        global_batch = batch.batch_size * setup.launch.world_size
+        setup.samples_seen += global_batch
+        self.window_samples += global_batch
+        past_deadline = self.deadline is not None and time.perf_counter() >= self.deadline
+        terms, (self.stop_requested, self.out_of_time) = average_and_any(
+            terms, (self.signals.requested, past_deadline), setup.launch
+        )
         total = float(terms["total"].detach())
         if not math.isfinite(total):
             self.save()
@@ -297,7 +343,8 @@ class TrainingRun:
         return terms, rate
 
     def log(self, terms: dict[str, torch.Tensor], rate: float) -> None:
-        """One row of ``train.csv`` (and TensorBoard)."""
+        """One row of ``train.csv`` (and TensorBoard); ``samples_per_second`` counts every
+        rank's examples."""
         now = time.perf_counter()
         samples_rate = self.window_samples / max(now - self.window_start, 1e-9)
         self.window_start, self.window_samples = now, 0
@@ -337,77 +384,122 @@ class TrainingRun:
         return metrics
 
     def save(self) -> Path:
-        """The checkpoint (weights, optimiser, counters, random states), atomically."""
+        """The checkpoint (weights, optimiser, counters, random states), atomically.
+
+        Under torchrun every rank calls it at the same step: rank 0 gathers the others'
+        random states and writes the file.
+        """
         setup = self.setup
+        states = gather_to_main(random_states(), setup.launch)
+        if not self.is_main:
+            return setup.checkpoint_path
         return save_checkpoint(
             setup.checkpoint_path, setup.network, setup.network_config.to_dict(), setup.step,
             self.config.to_dict(), setup.samples_seen, setup.optimizer,
+            rank_random_states=states if setup.launch.distributed else None,
         )  # fmt: skip
 
     def draw_curves(self) -> None:
         out = self.setup.out
         plot_training_curves(out / "train.csv", out / "val.csv", out / "curves.png")
 
+    def say(self, line: str) -> None:
+        """A line of the run's story, from rank 0 only."""
+        if self.is_main:
+            self.progress.write(line)
+
     def run(self) -> TrainingResult:
-        """Train to ``steps`` (or ``max_minutes``, or Ctrl-C / SIGTERM), then save and validate."""
+        """Train to ``steps`` (or ``max_minutes``, or Ctrl-C / SIGTERM), then save and validate.
+
+        The stop handlers stay in place until the run is saved: under torchrun every worker
+        gets the terminal's Ctrl-C and then torchrun's copy of it.
+        """
         config, setup = self.config, self.setup
-        stream = _batch_stream(setup)
-        _stop_on_sigterm()
-        interrupted = out_of_time = False
-        minutes = config.max_minutes
-        deadline = None if minutes is None else self.started + 60.0 * minutes
-        setup.network.train()
-        try:
-            while setup.step < config.steps:
-                terms, rate = self.step(next(stream))
-                out_of_time = self._after_step(terms, rate, deadline)
-                if out_of_time:
-                    break
-        except KeyboardInterrupt:
-            interrupted = True
-            self.progress.write(f"interrupted at step {setup.step}; saving {setup.checkpoint_path}")
-        finally:
-            self.progress.close()
-            stream.close()
-        self.save()
-        if not interrupted:
-            self.last_validation = self.validate()
-            print(f"final (step {setup.step}): " + _format_metrics(self.last_validation))
-        self.draw_curves()
+        launch = setup.launch
+        if launch.distributed:
+            self.say(
+                f"{launch.world_size} processes x batch {config.batch_size} = global batch "
+                f"{launch.world_size * config.batch_size} a step, learning rate "
+                f"{config.learning_rate:g} (samples counted over all processes)"
+            )
+        with self.signals:
+            self._train_steps()
+            interrupted = self.stop_requested
+            if interrupted:
+                self.say(f"interrupted at step {setup.step}; saving {setup.checkpoint_path}")
+            self.save()
+            if not interrupted and self.is_main:
+                self.last_validation = self.validate()
+                print(f"final (step {setup.step}): " + _format_metrics(self.last_validation))
+            if self.is_main:
+                self.draw_curves()
         if self.board is not None:
             self.board.close()
         return TrainingResult(
             setup.checkpoint_path, setup.step, setup.samples_seen,
-            time.perf_counter() - self.started, self.last_validation, interrupted, out_of_time,
+            time.perf_counter() - self.started, self.last_validation, interrupted,
+            self.out_of_time and not interrupted and setup.step < config.steps,
         )  # fmt: skip
 
-    def _after_step(self, terms: dict, rate: float, deadline: float | None) -> bool:
-        """Log, validate and checkpoint on their schedules; True when the time is up."""
+    def _train_steps(self) -> None:
+        """Steps until ``steps``, the clock, or a stop request, all ranks at the same step."""
+        config, setup = self.config, self.setup
+        stream = _batch_stream(setup)
+        setup.trained_module.train()
+        try:
+            while setup.step < config.steps:
+                terms, rate = self.step(next(stream))
+                self._after_step(terms, rate)
+                if self.stop_requested or self.out_of_time:
+                    break
+        except KeyboardInterrupt:  # a second Ctrl-C alone, or one before the handlers
+            if setup.launch.distributed:
+                raise  # mid-step: the other ranks cannot meet this one in a checkpoint
+            self.stop_requested = True
+        finally:
+            self.progress.close()
+            stream.close()
+
+    def _after_step(self, terms: dict, rate: float) -> None:
+        """Log, validate and checkpoint on their schedules (logs and validation on rank 0)."""
         config, step = self.config, self.setup.step
-        if step % config.log_every == 0 or step == config.steps:
+        if self.is_main and (step % config.log_every == 0 or step == config.steps):
             self.log(terms, rate)
-        if config.val_every and step % config.val_every == 0 and step < config.steps:
+        validating = config.val_every and step % config.val_every == 0 and step < config.steps
+        if self.is_main and validating:
             self.last_validation = self.validate()
-            self.progress.write(f"step {step}: " + _format_metrics(self.last_validation))
+            self.say(f"step {step}: " + _format_metrics(self.last_validation))
         if step % config.checkpoint_every == 0:
             self.save()
-        if deadline is not None and step < config.steps and time.perf_counter() >= deadline:
-            self.progress.write(
+        if self.out_of_time and not self.stop_requested and step < config.steps:
+            self.say(
                 f"--max-minutes {config.max_minutes:g} reached at step {step}; saving "
                 f"{self.setup.checkpoint_path} (continue with --resume)"
             )
-            return True
-        return False
 
 
-def train(config: TrainConfig, resume: bool = False, show_progress: bool = True) -> TrainingResult:
+def train(
+    config: TrainConfig,
+    resume: bool = False,
+    show_progress: bool = True,
+    launch: Launch | None = None,
+) -> TrainingResult:
     """Run (or resume) a training run as configured; see the module docstring.
+
+    Under torchrun (``launch``, default: detected from the environment) every process calls
+    it; they leave the process group when the run ends.
 
     Raises:
         FileNotFoundError: a data path (pose bank, backgrounds, resume checkpoint) is missing.
         ValueError: a flag out of range, or a resume that cannot continue.
     """
-    return TrainingRun(build_training(config, resume), show_progress).run()
+    setup = build_training(config, resume, launch)
+    result = None
+    try:
+        result = TrainingRun(setup, show_progress).run()
+    finally:
+        end_process_group(wait_for_all=result is not None)
+    return result
 
 
 HEADLINE_METRICS = (

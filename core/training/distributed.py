@@ -1,0 +1,194 @@
+"""Data-parallel training under ``torchrun``: which process this is, and what the processes share.
+
+``torchrun --nproc-per-node N hkpd-train ...`` starts N copies of ``hkpd-train`` with
+``WORLD_SIZE``, ``RANK`` and ``LOCAL_RANK`` in their environment. Each copy (a *rank*) trains
+the same network, wrapped in :class:`~torch.nn.parallel.DistributedDataParallel`, on its own
+synthetic stream, so one optimiser step sees ``batch_size x world_size`` examples:
+
+- the backend is gloo on CPU and NCCL on CUDA, one GPU per local rank (``cuda:LOCAL_RANK``);
+- rank ``r`` draws the data stream of seed ``seed + r`` (:func:`rank_seed`), so rank 0 sees
+  what a single-process run with the same seed sees, and a run is reproducible from its seed
+  and world size;
+- DistributedDataParallel averages the gradients over the ranks; the loss terms a rank logs
+  are averaged the same way (:func:`average_and_any`), together with the reasons to stop, so
+  every rank stops at the same step;
+- every rank's random states go into the checkpoint (:func:`gather_to_main`).
+
+A process started without ``torchrun`` is rank 0 of a world of 1, and none of this applies:
+no process group, no wrapper, no collective.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import torch
+import torch.distributed as dist
+from torch.nn.parallel import DistributedDataParallel
+
+LAUNCH_VARIABLES = ("WORLD_SIZE", "RANK", "LOCAL_RANK")
+
+
+@dataclass(frozen=True)
+class Launch:
+    """Where this process sits in a launch: rank ``rank`` of ``world_size`` (0 of 1 alone).
+
+    Attributes:
+        rank: this process's index among all processes (0 logs, validates and saves).
+        local_rank: its index on this machine (which GPU it uses).
+        world_size: processes training together.
+    """
+
+    rank: int = 0
+    local_rank: int = 0
+    world_size: int = 1
+
+    @property
+    def is_main(self) -> bool:
+        """The process that logs, validates, draws the curves and writes checkpoints."""
+        return self.rank == 0
+
+    @property
+    def distributed(self) -> bool:
+        return self.world_size > 1
+
+
+def detect_launch(environment: Mapping[str, str] | None = None) -> Launch:
+    """The launch described by torchrun's ``WORLD_SIZE``/``RANK``/``LOCAL_RANK`` variables.
+
+    Args:
+        environment: the variables to read (default: ``os.environ``).
+
+    Raises:
+        ValueError: some of the variables are set but not all, or their values do not fit.
+    """
+    environment = os.environ if environment is None else environment
+    given = {name: environment.get(name) for name in LAUNCH_VARIABLES}
+    if all(value is None for value in given.values()):
+        return Launch()
+    missing = [name for name, value in given.items() if value is None]
+    if missing:
+        raise ValueError(
+            f"the environment names a torchrun launch but lacks {', '.join(missing)}; start "
+            "hkpd-train with torchrun, or without any of WORLD_SIZE, RANK and LOCAL_RANK"
+        )
+    try:
+        launch = Launch(
+            rank=int(given["RANK"]), local_rank=int(given["LOCAL_RANK"]),
+            world_size=int(given["WORLD_SIZE"]),
+        )  # fmt: skip
+    except ValueError as error:
+        raise ValueError(f"torchrun's launch variables are not integers: {given}") from error
+    if not (launch.world_size >= 1 and 0 <= launch.rank < launch.world_size):
+        raise ValueError(f"torchrun's launch variables do not fit together: {given}")
+    if launch.local_rank < 0:
+        raise ValueError(f"LOCAL_RANK must be >= 0, got {launch.local_rank}")
+    return launch
+
+
+def launch_device(device: torch.device, launch: Launch) -> torch.device:
+    """The device this rank trains on: ``cuda:LOCAL_RANK`` for CUDA, the CPU as it is.
+
+    Raises:
+        ValueError: a multi-process launch on a device without a backend here (MPS), or with
+            more local ranks than GPUs.
+    """
+    if not launch.distributed:
+        return device
+    if device.type == "cuda":
+        if launch.local_rank >= torch.cuda.device_count():
+            raise ValueError(
+                f"local rank {launch.local_rank} has no GPU of its own: torch sees "
+                f"{torch.cuda.device_count()}; use --nproc-per-node <= the number of GPUs"
+            )
+        return torch.device("cuda", launch.local_rank)
+    if device.type != "cpu":
+        raise ValueError(f"multi-process training runs on cpu or cuda, not {device.type}")
+    return device
+
+
+def rank_seed(seed: int, rank: int) -> int:
+    """The seed of rank ``rank``'s data stream (rank 0 keeps the run's seed)."""
+    return seed + rank
+
+
+def start_process_group(launch: Launch, device: torch.device) -> None:
+    """Join the other ranks (gloo on CPU, NCCL on CUDA); nothing for a single process."""
+    if not launch.distributed or dist.is_initialized():
+        return
+    if device.type == "cuda":
+        torch.cuda.set_device(device)
+    dist.init_process_group(
+        "nccl" if device.type == "cuda" else "gloo", rank=launch.rank,
+        world_size=launch.world_size,
+    )  # fmt: skip
+
+
+def end_process_group(wait_for_all: bool = False) -> None:
+    """Leave the process group, if this process joined one.
+
+    Args:
+        wait_for_all: first wait until every rank has come here (a finished run). Gloo's
+            worker threads release a collective's tensors after it returns, which needs the
+            GIL; tearing the group down right after a collective (holding the GIL) can then
+            hang the process at exit. The barrier lets those releases happen first. A run
+            that failed leaves without it (the other ranks may be gone).
+    """
+    if not dist.is_initialized():
+        return
+    if wait_for_all:
+        dist.barrier()
+    dist.destroy_process_group()
+
+
+def wrap_for_training(
+    network: torch.nn.Module, launch: Launch, device: torch.device
+) -> torch.nn.Module:
+    """The module a training step calls: ``network`` itself alone, else its DDP wrapper.
+
+    The wrapper starts every rank from rank 0's weights and averages the gradients in
+    ``backward``. Batch normalisation stays per rank: each rank normalises with its own
+    batch's statistics, and rank 0's running statistics are the ones kept.
+    """
+    if not launch.distributed:
+        return network
+    device_ids = [device.index] if device.type == "cuda" else None
+    return DistributedDataParallel(network, device_ids=device_ids)
+
+
+def average_and_any(
+    terms: dict[str, torch.Tensor], flags: Sequence[bool], launch: Launch
+) -> tuple[dict[str, torch.Tensor], tuple[bool, ...]]:
+    """Loss terms averaged over the ranks, and each flag true where it is true on any rank.
+
+    One collective (a sum of a small vector on the terms' device), so every rank leaves with
+    the same numbers. Alone, ``terms`` come back as they are (the same tensors).
+
+    Args:
+        terms: scalar tensors, with the same names in the same order on every rank.
+        flags: booleans (e.g. "stop requested", "out of time"), the same count on every rank.
+    """
+    if not launch.distributed:
+        return terms, tuple(bool(flag) for flag in flags)
+    names = list(terms)
+    device = terms[names[0]].device
+    values = [terms[name].detach().float().reshape(()) for name in names]
+    values += [torch.tensor(float(flag), device=device) for flag in flags]
+    summed = torch.stack(values)
+    dist.all_reduce(summed)
+    averaged = {name: summed[index] / launch.world_size for index, name in enumerate(names)}
+    return averaged, tuple(bool(value > 0) for value in summed[len(names) :].tolist())
+
+
+def gather_to_main(value: object, launch: Launch) -> list[object] | None:
+    """Every rank's ``value`` (pickled), as a list by rank on rank 0; None on the others.
+
+    Alone, ``[value]``. Every rank must call it at the same point.
+    """
+    if not launch.distributed:
+        return [value]
+    gathered: list[object] | None = [None] * launch.world_size if launch.is_main else None
+    dist.gather_object(value, gathered, dst=0)
+    return gathered
