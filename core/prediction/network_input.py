@@ -20,6 +20,7 @@ from PIL import Image
 from hkpd.camera_conventions import CROP_SIZE
 from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.detection.keypoint_detector import KeypointDetection, KeypointDetector
+from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.evidence_rule import NO_OCCLUDERS, evidence_mask
 from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
 from hkpd.prediction.occluders import OccluderBoxes, Occluders, apply_occluders
@@ -48,6 +49,11 @@ class NetworkInput:
         occluders: the boxes painted over the photo (original-photo pixels).
         crop_silhouette: ``(S, S)`` bool person mask of the crop (occluders removed), for
             networks that read a silhouette; None otherwise.
+        person_mask: ``(S, S)`` float32 in [0, 1]: BlazePose's segmentation mapped into the
+            crop (:func:`crop_person_mask`), the probability that the pixel shows the person;
+            None when the detector gave no mask (``KeypointDetector(segmentation=False)``).
+        person_mask_known: ``(S, S)`` bool, False where the photo says neither body nor
+            background (inside occluder boxes, outside the photo); None with ``person_mask``.
     """
 
     proxy: torch.Tensor
@@ -60,6 +66,8 @@ class NetworkInput:
     image: LoadedImage
     occluders: Occluders
     crop_silhouette: np.ndarray | None = None
+    person_mask: np.ndarray | None = None
+    person_mask_known: np.ndarray | None = None
 
     @property
     def box_keypoints_crop(self) -> np.ndarray:
@@ -139,6 +147,10 @@ def prepare_network_input(
             silhouette = apply_occluders(silhouette, occluders)  # the photo's own pixels
         crop_silhouette = crop.crop_image(silhouette.astype(np.uint8) * 255) >= 128
     proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, crop_silhouette)
+    person_mask, person_mask_known = None, None
+    if detection.person_mask is not None:
+        person_mask = crop_person_mask(detection.person_mask, crop)
+        person_mask_known = mask_known(crop, detection.image_size, occluders)
     return NetworkInput(
         proxy=proxy,
         crop=crop,
@@ -150,7 +162,31 @@ def prepare_network_input(
         image=loaded,
         occluders=occluders,
         crop_silhouette=crop_silhouette,
+        person_mask=person_mask,
+        person_mask_known=person_mask_known,
     )
+
+
+def crop_person_mask(mask: PersonMask, crop: CropTransform) -> np.ndarray:
+    """``(S, S)`` float32 in [0, 1]: ``mask`` resampled once into ``crop``'s pixels (the
+    landmark crop's affine map composed with the crop's; bilinear; 0 outside the landmark
+    region)."""
+    return mask.in_frame(crop.affine_matrix(), (crop.size, crop.size))
+
+
+def mask_known(
+    crop: CropTransform, image_size: tuple[int, int], occluders: Occluders
+) -> np.ndarray:
+    """``(S, S)`` bool: crop pixels whose centre lies on a photo pixel that no occluder paints
+    (:meth:`Occluders.covers`): where the photo says "person" or "background". False outside
+    the photo and inside the boxes (no evidence either way)."""
+    rows, cols = np.mgrid[0 : crop.size, 0 : crop.size]
+    centres = crop.crop_to_image(np.stack([cols, rows], axis=-1).astype(np.float64))
+    width, height = image_size
+    pixel = np.floor(centres + 0.5)
+    inside = (pixel[..., 0] >= 0) & (pixel[..., 0] < width)
+    inside &= (pixel[..., 1] >= 0) & (pixel[..., 1] < height)
+    return inside & ~occluders.covers(centres)
 
 
 def _checked_silhouette(silhouette: np.ndarray | None, loaded: LoadedImage) -> np.ndarray:
