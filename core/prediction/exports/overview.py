@@ -224,10 +224,19 @@ def _draw_outlines(
         _draw_contours(draw, probability > MASK_THRESHOLD, MASK_COLOUR, line)
     if outlines.mode_vertices2d is not None and outlines.faces is not None:
         points = view.image_to_crop(np.asarray(outlines.mode_vertices2d, np.float64))
-        silhouette = np.zeros(shape, np.uint8)
-        triangles = np.round(points[np.asarray(outlines.faces)]).astype(np.int32)
-        cv2.fillPoly(silhouette, list(triangles), 1)
-        _draw_contours(draw, silhouette > 0, MODE_COLOUR, max(1, line // 2 + 1))
+        _draw_contours(draw, mesh_silhouette(points, outlines.faces, shape), MODE_COLOUR, line)
+
+
+def mesh_silhouette(
+    points: np.ndarray, faces: np.ndarray, shape: tuple[int, int]
+) -> np.ndarray:
+    """``(H, W)`` bool: the pixels the triangles ``faces`` of the ``(V, 2)`` projected
+    ``points`` (pixels, centres at integers) cover, each filled on its own (a union)."""
+    silhouette = np.zeros(shape, np.uint8)
+    triangles = np.round(np.asarray(points)[np.asarray(faces)] * 4).astype(np.int32)
+    for triangle in triangles:
+        cv2.fillConvexPoly(silhouette, triangle, 1, lineType=cv2.LINE_8, shift=2)
+    return silhouette > 0
 
 
 def _draw_contours(
