@@ -11,8 +11,8 @@ import torch
 
 from hkpd.prediction import KeypointDetection, KeypointDetector, LoadedImage, prepare_network_input
 from hkpd.prediction.crop import CropTransform
-from hkpd.prediction.detection.boxes import search_region, validated_box
 from hkpd.prediction.detection.blazepose import PersonCandidate, PoseLandmarks
+from hkpd.prediction.detection.boxes import search_region, validated_box
 from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.detection.warp import Region, crop_matrix
 from hkpd.prediction.image_input import load_image

@@ -362,10 +362,8 @@ def _write_overview(
 ) -> Path:
     """Write the overview picture (:func:`hkpd.prediction.exports.overview.make_overview`) to
     ``path``."""
-    from hkpd.prediction.exports.overview import make_overview
-
     from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
-    from hkpd.prediction.exports.overview import Outlines
+    from hkpd.prediction.exports.overview import Outlines, make_overview
 
     prepared = posterior.network_input
     detection = prepared.detection

@@ -67,6 +67,7 @@ REGION_SCALE = 1.25
 POSE_PRESENCE_THRESHOLD = 0.5
 """The landmark model's pose-presence score below which a region holds no person."""
 
+
 @dataclass(frozen=True)
 class PersonCandidate:
     """One person found by the detector.
@@ -190,4 +191,3 @@ class BlazePose:
             region=region,
             mask=mask,
         )
-

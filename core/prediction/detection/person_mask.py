@@ -27,7 +27,8 @@ class PersonMask:
     """One person's segmentation probabilities and where they lie in the original photo.
 
     Attributes:
-        probability: ``(M, M)`` float32 in [0, 1], the landmark crop's pixels (row, col).
+        probability: ``(M, M)`` float32 in [0, 1], the landmark crop's pixels (row, col)
+            (any ``(h, w)`` grid works; BlazePose's is 256 × 256).
         to_photo: ``(2, 3)`` float64 affine map, ``[u, v] = to_photo @ [col, row, 1]``: mask
             pixel centre -> original-photo pixel (pixel centres at integers).
         image_size: ``(width, height)`` of the original photo, pixels.
@@ -40,7 +41,8 @@ class PersonMask:
     def moved(self, matrix: np.ndarray, image_size: tuple[int, int]) -> PersonMask:
         """The same mask in another photo frame: ``matrix`` ``(2, 3)`` maps this mask's photo
         pixels to the new frame's (e.g. working image -> original photo)."""
-        return PersonMask(self.probability, (_square(matrix) @ _square(self.to_photo))[:2], image_size)
+        to_photo = (_square(matrix) @ _square(self.to_photo))[:2]
+        return PersonMask(self.probability, to_photo, image_size)
 
     def in_frame(self, photo_to_frame: np.ndarray, size: tuple[int, int]) -> np.ndarray:
         """The probabilities resampled (bilinearly, once) into another frame of the photo.

@@ -227,9 +227,7 @@ def _draw_outlines(
         _draw_contours(draw, mesh_silhouette(points, outlines.faces, shape), MODE_COLOUR, line)
 
 
-def mesh_silhouette(
-    points: np.ndarray, faces: np.ndarray, shape: tuple[int, int]
-) -> np.ndarray:
+def mesh_silhouette(points: np.ndarray, faces: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """``(H, W)`` bool: the pixels the triangles ``faces`` of the ``(V, 2)`` projected
     ``points`` (pixels, centres at integers) cover, each filled on its own (a union)."""
     silhouette = np.zeros(shape, np.uint8)
@@ -243,9 +241,7 @@ def _draw_contours(
     draw: ImageDraw.ImageDraw, mask: np.ndarray, colour: tuple[int, ...], width: int
 ) -> None:
     """Draw the outer and inner boundaries of the ``(H, W)`` bool ``mask``."""
-    contours, _ = cv2.findContours(
-        mask.astype(np.uint8), cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE
-    )
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
     for contour in contours:
         points = [tuple(map(float, point)) for point in contour[:, 0]]
         if len(points) > 1:
@@ -315,7 +311,13 @@ def make_overview(
     """
     values = np.asarray(uncertainty, dtype=np.float64)
     skeletons = draw_skeletons(
-        photo, crop, keypoints, confidences, mode_keypoints2d, sample_keypoints2d, height,
+        photo,
+        crop,
+        keypoints,
+        confidences,
+        mode_keypoints2d,
+        sample_keypoints2d,
+        height,
         outlines,
     )
     front, side, masks = render_uncertainty_views(mode_vertices, faces, values, scale, height)
