@@ -149,3 +149,15 @@ def test_without_segmentation_there_is_no_mask_and_everything_else_is_unchanged(
     assert np.median(mask[v[on_crop], u[on_crop]]) > 0.5
     assert max(mask[0, 0], mask[0, -1], mask[-1, 0], mask[-1, -1]) < 0.5
     assert 0.05 < (mask > 0.5).mean() < 0.6
+
+
+def test_the_mask_box_is_the_box_of_every_pixel_above_one_half() -> None:
+    rng = np.random.default_rng(3)
+    probability = cv2.GaussianBlur(rng.uniform(0, 1, (64, 64)).astype(np.float32), (9, 9), 3)
+    probability = (probability - probability.min()) / np.ptp(probability)
+    to_photo = crop_matrix(Region(np.array([300.0, 200.0]), 250.0, 0.7), 64)
+    mask = PersonMask(probability, to_photo, (640, 480))
+    rows, cols = np.nonzero(probability > 0.5)
+    points = np.stack([cols, rows], 1) @ to_photo[:, :2].T + to_photo[:, 2]
+    np.testing.assert_allclose(mask.box(), [*points.min(0), *points.max(0)], atol=1e-9)
+    assert PersonMask(np.zeros((8, 8), np.float32), to_photo, (640, 480)).box() is None

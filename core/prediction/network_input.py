@@ -180,13 +180,18 @@ def mask_known(
     """``(S, S)`` bool: crop pixels whose centre lies on a photo pixel that no occluder paints
     (:meth:`Occluders.covers`): where the photo says "person" or "background". False outside
     the photo and inside the boxes (no evidence either way)."""
-    rows, cols = np.mgrid[0 : crop.size, 0 : crop.size]
-    centres = crop.crop_to_image(np.stack([cols, rows], axis=-1).astype(np.float64))
+    # The crop is an axis-aligned square: a pixel's photo u depends on its column only.
+    steps = np.arange(crop.size, dtype=np.float64)
+    u, v = crop.crop_to_image(np.stack([steps, steps], axis=-1)).T
     width, height = image_size
-    pixel = np.floor(centres + 0.5)
-    inside = (pixel[..., 0] >= 0) & (pixel[..., 0] < width)
-    inside &= (pixel[..., 1] >= 0) & (pixel[..., 1] < height)
-    return inside & ~occluders.covers(centres)
+    in_u = (np.floor(u + 0.5) >= 0) & (np.floor(u + 0.5) < width)
+    in_v = (np.floor(v + 0.5) >= 0) & (np.floor(v + 0.5) < height)
+    known = in_v[:, None] & in_u[None, :]
+    if len(occluders):
+        centres = np.empty((crop.size, crop.size, 2))
+        centres[..., 0], centres[..., 1] = u[None, :], v[:, None]
+        known &= ~occluders.covers(centres)
+    return known
 
 
 def _checked_silhouette(silhouette: np.ndarray | None, loaded: LoadedImage) -> np.ndarray:

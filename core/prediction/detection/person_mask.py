@@ -73,9 +73,14 @@ class PersonMask:
     def box(self) -> np.ndarray | None:
         """``(4,)`` ``(x0, y0, x1, y1)`` photo-pixel box (unclipped) of the mask pixel centres
         above :data:`MASK_THRESHOLD`, or None when the mask is empty."""
-        rows, cols = np.nonzero(self.probability > MASK_THRESHOLD)
+        above = self.probability > MASK_THRESHOLD
+        rows = np.flatnonzero(above.any(axis=1))
         if rows.size == 0:
             return None
+        # An affine map's extremes over the pixels lie at each row's first and last pixel.
+        first = above[rows].argmax(axis=1)
+        last = above.shape[1] - 1 - above[rows, ::-1].argmax(axis=1)
+        cols, rows = np.concatenate([first, last]), np.concatenate([rows, rows])
         centres = np.stack([cols, rows, np.ones_like(cols)], axis=1).astype(np.float64)
         points = centres @ self.to_photo.T
         return np.concatenate([points.min(0), points.max(0)])
