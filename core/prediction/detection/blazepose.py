@@ -115,7 +115,7 @@ class BlazePose:
         threads: interpreter threads per model.
         segmentation: keep the landmark model's segmentation head (needed for
             ``landmarks(..., segmentation=True)``; the landmark outputs are identical either way,
-            and the head costs about 9 % of the landmark model's compute).
+            the head costs about 3.4 ms CPU a call, docs/benchmarks.md).
     """
 
     def __init__(

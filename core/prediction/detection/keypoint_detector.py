@@ -139,7 +139,7 @@ class KeypointDetector:
     Args:
         segmentation: also run BlazePose's person segmentation and report ``person_mask`` and
             ``mask_box`` (on by default: the silhouette evidence; the keypoints are identical
-            either way, the head costs about 9 % of the landmark model).
+            either way; the head costs about 3.4 ms CPU a call, docs/benchmarks.md).
         min_detection_confidence: BlazePose's person-detector threshold.
         runner: the pose model (default: :class:`BlazePose` with the shipped models).
     """
