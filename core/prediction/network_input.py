@@ -134,10 +134,7 @@ def prepare_network_input(
     evidence = evidence_mask(detection.keypoints, detection.confidences, occluders)
     confidences = np.where(evidence, detection.confidences, 0.0)
     crop = CropTransform.from_keypoints(
-        detection.keypoints,
-        detection.confidences,
-        image_size=detection.image_size,
-        size=crop_size,
+        detection.keypoints, detection.confidences, image_size=detection.image_size, size=crop_size
     )
     crop_rgb = crop.crop_image(loaded.pixels, loaded.scale)
     keypoints_crop = crop.image_to_crop(detection.keypoints)
@@ -147,10 +144,7 @@ def prepare_network_input(
             silhouette = apply_occluders(silhouette, occluders)  # the photo's own pixels
         crop_silhouette = crop.crop_image(silhouette.astype(np.uint8) * 255) >= 128
     proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, crop_silhouette)
-    person_mask, person_mask_known = None, None
-    if detection.person_mask is not None:
-        person_mask = crop_person_mask(detection.person_mask, crop)
-        person_mask_known = mask_known(crop, detection.image_size, occluders)
+    person_mask, person_mask_known = _mask_evidence(detection, crop, occluders)
     return NetworkInput(
         proxy=proxy,
         crop=crop,
@@ -165,6 +159,16 @@ def prepare_network_input(
         person_mask=person_mask,
         person_mask_known=person_mask_known,
     )
+
+
+def _mask_evidence(
+    detection: KeypointDetection, crop: CropTransform, occluders: Occluders
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The detection's mask in ``crop`` and where it is evidence; ``(None, None)`` without one."""
+    if detection.person_mask is None:
+        return None, None
+    known = mask_known(crop, detection.image_size, occluders)
+    return crop_person_mask(detection.person_mask, crop), known
 
 
 def crop_person_mask(mask: PersonMask, crop: CropTransform) -> np.ndarray:
