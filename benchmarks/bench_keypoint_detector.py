@@ -6,11 +6,14 @@ gives the median over photos of each photo's median wall time, and the two model
 shared machine wall time grows with the load; the CPU time of a call (``detect`` CPU, all
 threads) does not, and with ``--threads 1`` it is the wall time on an idle core.
 
+``--no-segmentation`` times the runner without BlazePose's segmentation head (dropped at load;
+the keypoints are identical), to measure what the person mask costs.
+
 ``--mediapipe`` times the legacy mediapipe solution the same way instead (where mediapipe is
 installed; ``hkpd.prediction.detection.mediapipe_reference``).
 
 Usage: python benchmarks/bench_keypoint_detector.py DIR [DIR ...] [--repeats 5] [--threads 1]
-[--mediapipe]
+[--no-segmentation] [--mediapipe]
 """
 
 from __future__ import annotations
@@ -55,6 +58,12 @@ def main() -> None:
     parser.add_argument("folders", type=Path, nargs="+")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--threads", type=int, default=1, help="interpreter threads per model")
+    parser.add_argument(
+        "--segmentation",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="run the segmentation head (the person mask); --no-segmentation drops it",
+    )
     parser.add_argument("--mediapipe", action="store_true", help="time the legacy solution")
     args = parser.parse_args()
     photos = [
@@ -66,9 +75,10 @@ def main() -> None:
     if args.mediapipe:
         time_mediapipe(photos, args.repeats)
         return
-    runner = BlazePose(threads=args.threads)
-    detector = KeypointDetector(runner=runner)
+    runner = BlazePose(threads=args.threads, segmentation=args.segmentation)
+    detector = KeypointDetector(segmentation=args.segmentation, runner=runner)
     print(f"{len(photos)} photos; {os.cpu_count()} CPUs; {args.threads} threads; "
+          f"segmentation {'on' if args.segmentation else 'off'}; "
           f"load average before {os.getloadavg()[0]:.2f}")  # fmt: skip
     detect_ms, cpu_ms, find_ms, landmark_ms = [], [], [], []
     for photo in photos:
@@ -88,7 +98,7 @@ def main() -> None:
         find_ms.append(1e3 * (time.perf_counter() - start))
         if people:
             start = time.perf_counter()
-            runner.landmarks(loaded.pixels, people[0].region)
+            runner.landmarks(loaded.pixels, people[0].region, args.segmentation)
             landmark_ms.append(1e3 * (time.perf_counter() - start))
     print("| step | median ms | p90 ms |")
     print("|---|---|---|")

@@ -22,6 +22,7 @@ from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.prediction import cli
 from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.detection.keypoint_detector import KeypointDetection, NoPersonFoundError
+from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
 from hkpd.prediction.exports.writers import to_display_frame
 from hkpd.prediction.image_input import load_image
@@ -45,6 +46,7 @@ class TruthDetector:
             raise NoPersonFoundError(f"{loaded.source}: no person found in the photo")
         box = np.concatenate([self.keypoints.min(0), self.keypoints.max(0)])
         return KeypointDetection(
+            person_mask=box_mask(box, loaded.original_size),
             keypoints=self.keypoints.copy(),
             confidences=self.confidences.copy(),
             person_box=box,
@@ -56,6 +58,17 @@ class TruthDetector:
 
     def close(self) -> None:
         pass
+
+
+def box_mask(box: np.ndarray, image_size: tuple[int, int]) -> PersonMask:
+    """A 64 × 64 mask, probability 1 inside ``box`` (a stand-in for BlazePose's): its pixels
+    map onto the box's photo pixels."""
+    probability = np.zeros((64, 64), np.float32)
+    probability[8:56, 8:56] = 1.0
+    x0, y0, x1, y1 = box
+    scale_x, scale_y = (x1 - x0) / 48, (y1 - y0) / 48
+    to_photo = np.array([[scale_x, 0, x0 - 7.5 * scale_x], [0, scale_y, y0 - 7.5 * scale_y]])
+    return PersonMask(probability, to_photo, image_size)
 
 
 @pytest.fixture(scope="module")
@@ -156,7 +169,9 @@ def test_files_written(run_result):
         assert sorted(p.name for p in (folder / "samples").glob(f"*.{fmt}")) == [
             f"sample_{k:03d}.{fmt}" for k in range(SAMPLES)
         ]
-    assert {"overview.png", "prediction.npz", "summary.json"} <= {p.name for p in folder.iterdir()}
+    assert {"overview.png", "prediction.npz", "summary.json", "person_mask.png"} <= {
+        p.name for p in folder.iterdir()
+    }
     # Failed photos leave no folder behind.
     assert sorted(p.name for p in run_result["out"].iterdir()) == ["person"]
 
@@ -252,6 +267,31 @@ def test_overview_png(run_result):
     assert 480 < height < 600 and 900 < width < 1800
     # The renders contain mesh colours from the viridis ramp, not only background.
     assert len(np.unique(image.reshape(-1, 3), axis=0)) > 500
+
+
+def test_the_person_mask_is_written_in_photo_pixels_and_outlined(run_result, scene):
+    folder = run_result["out"] / "person"
+    written = np.asarray(Image.open(folder / "person_mask.png"))
+    assert written.shape == (512, 384) and written.dtype == np.uint8
+    box = np.concatenate([scene.keypoints2d.min(0), scene.keypoints2d.max(0)])
+    centre = np.round((box[:2] + box[2:]) / 2).astype(int)
+    assert written[centre[1], centre[0]] == 255
+    # Bilinear resampling blurs the edge over one mask pixel (box side / 48 photo pixels).
+    x0, y0, x1, y1 = box
+    blur = int(np.ceil(max(x1 - x0, y1 - y0) / 48)) + 1
+    inside = written[int(y0) + blur : int(y1) - blur, int(x0) + blur : int(x1) - blur]
+    assert inside.size > 0 and (inside == 255).all()
+    outside = np.ones_like(written, bool)
+    outside[int(y0) - blur : int(y1) + blur + 1, int(x0) - blur : int(x1) + blur + 1] = False
+    assert (written[outside] == 0).all()
+    summary = json.loads((folder / "summary.json").read_text())
+    assert "person_mask.png" in summary["files"]
+    # The overview outlines the mask in its colour.
+    from hkpd.prediction.exports.overview import MASK_COLOUR
+
+    overview = np.asarray(Image.open(folder / "overview.png")).astype(int)
+    near = np.abs(overview - np.asarray(MASK_COLOUR)).max(axis=-1) < 40
+    assert near.sum() > 100
 
 
 def test_missing_model_exits_2_without_traceback(photos, tmp_path, capsys, fake_predictor_factory,

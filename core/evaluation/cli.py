@@ -151,6 +151,12 @@ def _add_photo_arguments(parser: argparse.ArgumentParser) -> None:
         help="with --coco: also measure BlazePose against the human keypoints (jitter, misses, "
         "swaps, outliers; the numbers behind the detector-like noise)",
     )
+    parser.add_argument(
+        "--mask-errors",
+        action="store_true",
+        help="with --coco: also measure BlazePose's person mask against the COCO masks (IoU, "
+        "where it errs, edge offsets; each split apart; docs/shape.md)",
+    )
 
 
 def evaluate_synthetic(
@@ -210,6 +216,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--figure draws the synthetic results: drop --no-synthetic")
         if arguments.coco_turns and arguments.coco is None:
             raise ValueError("--coco-turns turns the --coco photos: give --coco too")
+        if arguments.mask_errors and arguments.coco is None:
+            raise ValueError("--mask-errors compares with the --coco masks: give --coco too")
         if arguments.coco is not None and not arguments.coco.is_dir():
             raise FileNotFoundError(f"COCO folder {arguments.coco} does not exist")
         for name in ("count", "samples"):
@@ -361,6 +369,8 @@ def _photo_report(arguments: argparse.Namespace, device: torch.device) -> list[s
     report = []
     if arguments.detector_errors:
         report.append(_detector_error_table(load_coco_people(arguments.coco, 6), arguments))
+    if arguments.mask_errors:
+        report.append(_mask_error_report(arguments))
     columns = list(next(iter(rows.values())))
     report.append(
         f"### Real photos: {arguments.coco} ({len(people)} people with >= 12 visible "
@@ -501,6 +511,22 @@ def _detector_error_table(people: list, arguments: argparse.Namespace) -> str:
         + "\n\n"
         + markdown_table(medians, list(stats.per_keypoint_median))
     )
+
+
+def _mask_error_report(arguments: argparse.Namespace) -> str:
+    """BlazePose's mask against the COCO masks, people with >= 6 visible keypoints, each split
+    apart (only ``--coco-split`` when given)."""
+    from hkpd.evaluation.mask_errors import mask_error_table, split_mask_errors
+    from hkpd.evaluation.real_photos import load_coco_people
+    from hkpd.prediction.detection.keypoint_detector import KeypointDetector
+
+    everyone = load_coco_people(arguments.coco, 0)
+    people = load_coco_people(arguments.coco, 6)
+    if arguments.coco_split:
+        people = [p for p in people if p.image_path.parent.name == arguments.coco_split]
+    with KeypointDetector(segmentation=True) as detector:
+        results = split_mask_errors(detector, people, everyone)
+    return "### BlazePose's person mask against the COCO masks\n\n" + mask_error_table(results)
 
 
 def _row_name(checkpoint: Path, factor: float, scales: list[float]) -> str:

@@ -14,7 +14,10 @@ it writes into ``DIR/<image stem>/``:
 - ``mode_uncertainty.<fmt>``: the mode with per-vertex uncertainty as vertex colours;
 - ``prediction.npz`` (with ``npz`` in ``--format``): distribution parameters and all vertices;
 - ``summary.json``: image, detected person, crop, keypoints, uncertainty, files, timings;
-- ``overview.png``: photo with keypoints and skeletons, uncertainty renders and colour bar.
+- ``overview.png``: photo with keypoints and skeletons, the outlines of the person mask and of
+  the mode's silhouette, uncertainty renders and colour bar;
+- ``person_mask.png``: BlazePose's segmentation of the person, 8-bit grayscale in original
+  photo pixels (255 × the probability that the pixel shows the person).
 
 With ``--same-person`` the photos show one person, and ``DIR/same_person_shape/`` also gets
 the shape combined from all photos that succeeded (the precision-weighted product of their shape
@@ -50,10 +53,12 @@ from hkpd.prediction.exports.writers import (
     DISPLAY_FRAME_NOTE,
     MESH_FORMATS,
     OUTPUT_FORMATS,
+    PERSON_MASK_FILE,
     distribution_arrays,
     write_distribution_npz,
     write_json,
     write_mesh,
+    write_person_mask,
 )
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
 from hkpd.prediction.shape_combination import combine_shape_tensors
@@ -285,7 +290,11 @@ def predict_photo(
             folder / "overview.png", posterior, mode, drawn, uncertainty_np, scale, caption
         )
     )
-    _timed(timings, "overview_s", clock)
+    clock = _timed(timings, "overview_s", clock)
+    mask = posterior.network_input.detection.person_mask
+    if mask is not None:
+        written.append(write_person_mask(folder / PERSON_MASK_FILE, mask))
+        _timed(timings, "mask_s", clock)
     timings["total_s"] = round(time.perf_counter() - started, 4)
 
     summary_path = folder / "summary.json"
@@ -353,10 +362,18 @@ def _write_overview(
 ) -> Path:
     """Write the overview picture (:func:`hkpd.prediction.exports.overview.make_overview`) to
     ``path``."""
-    from hkpd.prediction.exports.overview import make_overview
+    from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
+    from hkpd.prediction.exports.overview import Outlines, make_overview
 
     prepared = posterior.network_input
     detection = prepared.detection
+    ndc = weak_perspective_project(mode.vertices, posterior.camera.expand(1, 3))
+    vertices2d = posterior.crop.crop_to_image(ndc_to_pixels(ndc, posterior.crop.size))
+    outlines = Outlines(
+        person_mask=detection.person_mask,
+        mode_vertices2d=torch.as_tensor(vertices2d)[0].detach().cpu().double().numpy(),
+        faces=torch.as_tensor(posterior.body.faces).cpu().numpy(),
+    )
     overview = make_overview(
         prepared.image,
         posterior.crop,
@@ -369,6 +386,7 @@ def _write_overview(
         uncertainty,
         scale,
         caption=caption,
+        outlines=outlines,
     )
     Image.fromarray(overview).save(path)
     return path

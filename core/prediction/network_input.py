@@ -20,6 +20,7 @@ from PIL import Image
 from hkpd.camera_conventions import CROP_SIZE
 from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.detection.keypoint_detector import KeypointDetection, KeypointDetector
+from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.evidence_rule import NO_OCCLUDERS, evidence_mask
 from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
 from hkpd.prediction.occluders import OccluderBoxes, Occluders, apply_occluders
@@ -48,6 +49,11 @@ class NetworkInput:
         occluders: the boxes painted over the photo (original-photo pixels).
         crop_silhouette: ``(S, S)`` bool person mask of the crop (occluders removed), for
             networks that read a silhouette; None otherwise.
+        person_mask: ``(S, S)`` float32 in [0, 1]: BlazePose's segmentation mapped into the
+            crop (:func:`crop_person_mask`), the probability that the pixel shows the person;
+            None when the detector gave no mask (``KeypointDetector(segmentation=False)``).
+        person_mask_known: ``(S, S)`` bool, False where the photo says neither body nor
+            background (inside occluder boxes, outside the photo); None with ``person_mask``.
     """
 
     proxy: torch.Tensor
@@ -60,6 +66,8 @@ class NetworkInput:
     image: LoadedImage
     occluders: Occluders
     crop_silhouette: np.ndarray | None = None
+    person_mask: np.ndarray | None = None
+    person_mask_known: np.ndarray | None = None
 
     @property
     def box_keypoints_crop(self) -> np.ndarray:
@@ -126,10 +134,7 @@ def prepare_network_input(
     evidence = evidence_mask(detection.keypoints, detection.confidences, occluders)
     confidences = np.where(evidence, detection.confidences, 0.0)
     crop = CropTransform.from_keypoints(
-        detection.keypoints,
-        detection.confidences,
-        image_size=detection.image_size,
-        size=crop_size,
+        detection.keypoints, detection.confidences, image_size=detection.image_size, size=crop_size
     )
     crop_rgb = crop.crop_image(loaded.pixels, loaded.scale)
     keypoints_crop = crop.image_to_crop(detection.keypoints)
@@ -139,6 +144,7 @@ def prepare_network_input(
             silhouette = apply_occluders(silhouette, occluders)  # the photo's own pixels
         crop_silhouette = crop.crop_image(silhouette.astype(np.uint8) * 255) >= 128
     proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, crop_silhouette)
+    person_mask, person_mask_known = _mask_evidence(detection, crop, occluders)
     return NetworkInput(
         proxy=proxy,
         crop=crop,
@@ -150,7 +156,46 @@ def prepare_network_input(
         image=loaded,
         occluders=occluders,
         crop_silhouette=crop_silhouette,
+        person_mask=person_mask,
+        person_mask_known=person_mask_known,
     )
+
+
+def _mask_evidence(
+    detection: KeypointDetection, crop: CropTransform, occluders: Occluders
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The detection's mask in ``crop`` and where it is evidence; ``(None, None)`` without one."""
+    if detection.person_mask is None:
+        return None, None
+    known = mask_known(crop, detection.image_size, occluders)
+    return crop_person_mask(detection.person_mask, crop), known
+
+
+def crop_person_mask(mask: PersonMask, crop: CropTransform) -> np.ndarray:
+    """``(S, S)`` float32 in [0, 1]: ``mask`` resampled once into ``crop``'s pixels (the
+    landmark crop's affine map composed with the crop's; bilinear; 0 outside the landmark
+    region)."""
+    return mask.in_frame(crop.affine_matrix(), (crop.size, crop.size))
+
+
+def mask_known(
+    crop: CropTransform, image_size: tuple[int, int], occluders: Occluders
+) -> np.ndarray:
+    """``(S, S)`` bool: crop pixels whose centre lies on a photo pixel that no occluder paints
+    (:meth:`Occluders.covers`): where the photo says "person" or "background". False outside
+    the photo and inside the boxes (no evidence either way)."""
+    # The crop is an axis-aligned square: a pixel's photo u depends on its column only.
+    steps = np.arange(crop.size, dtype=np.float64)
+    u, v = crop.crop_to_image(np.stack([steps, steps], axis=-1)).T
+    width, height = image_size
+    in_u = (np.floor(u + 0.5) >= 0) & (np.floor(u + 0.5) < width)
+    in_v = (np.floor(v + 0.5) >= 0) & (np.floor(v + 0.5) < height)
+    known = in_v[:, None] & in_u[None, :]
+    if len(occluders):
+        centres = np.empty((crop.size, crop.size, 2))
+        centres[..., 0], centres[..., 1] = u[None, :], v[:, None]
+        known &= ~occluders.covers(centres)
+    return known
 
 
 def _checked_silhouette(silhouette: np.ndarray | None, loaded: LoadedImage) -> np.ndarray:

@@ -42,6 +42,7 @@ from hkpd.prediction.detection.boxes import (
     tile_bounds,
     validated_box,
 )
+from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.detection.warp import Region
 from hkpd.prediction.image_input import LoadedImage, load_image
 
@@ -93,14 +94,17 @@ class KeypointDetection:
         person_box: ``(4,)`` ``(x0, y0, x1, y1)`` bounding box of all 33 BlazePose landmarks,
             original pixels, clipped to the photo: which person was taken.
         mask_box: ``(4,)`` box of BlazePose's person segmentation mask (includes hair, hands and
-            feet), original pixels; None unless the detector was made with ``segmentation=True``
-            (or when the mask is empty).
+            feet), original pixels, clipped to the photo; None when the detector was made with
+            ``segmentation=False`` (or when the mask is empty).
         search_box: the ``bbox`` the search was restricted to (original pixels), or None.
         image_size: ``(width, height)`` of the original photo.
         seconds: wall time of the models and decoding (lock wait excluded), seconds.
         detector_score: the person detector's score in [0, 1]; None when the landmark model
             looked at the user's box because the detector found nobody inside it.
         presence: the landmark model's pose-presence score in [0, 1] (None if unknown).
+        person_mask: BlazePose's segmentation of this person, mapped to the original photo
+            (:class:`PersonMask`: ``in_photo()``, ``in_frame(...)``); None when the detector
+            was made with ``segmentation=False``.
     """
 
     keypoints: np.ndarray
@@ -112,6 +116,7 @@ class KeypointDetection:
     seconds: float
     detector_score: float | None = None
     presence: float | None = None
+    person_mask: PersonMask | None = None
 
 
 class PoseRunner(Protocol):
@@ -132,14 +137,16 @@ class KeypointDetector:
     state). Close it with :meth:`close` or use it as a context manager.
 
     Args:
-        segmentation: also run BlazePose's person segmentation and report ``mask_box``.
+        segmentation: also run BlazePose's person segmentation and report ``person_mask`` and
+            ``mask_box`` (on by default: the silhouette evidence; the keypoints are identical
+            either way; the head costs about 3.4 ms CPU a call, docs/benchmarks.md).
         min_detection_confidence: BlazePose's person-detector threshold.
         runner: the pose model (default: :class:`BlazePose` with the shipped models).
     """
 
     def __init__(
         self,
-        segmentation: bool = False,
+        segmentation: bool = True,
         min_detection_confidence: float = 0.5,
         runner: PoseRunner | None = None,
     ) -> None:
@@ -322,10 +329,12 @@ def _to_detection(
     confidences = np.clip(found.visibility[list(COCO_FROM_BLAZEPOSE)], 0.0, 1.0)
     if int((confidences >= CONFIDENT_VISIBILITY).sum()) < MIN_CONFIDENT_KEYPOINTS:
         return None
-    mask_box = None
-    if found.mask_box is not None:
-        corners = loaded.to_original(found.mask_box.reshape(2, 2) + shift)
-        mask_box = clipped_box(corners, loaded.original_size)
+    person_mask, mask_box = None, None
+    if found.mask is not None:
+        person_mask = found.mask.moved(_to_original_matrix(loaded, shift), loaded.original_size)
+        corners = person_mask.box()
+        if corners is not None:
+            mask_box = clipped_box(corners.reshape(2, 2), loaded.original_size)
     return KeypointDetection(
         keypoints=original[list(COCO_FROM_BLAZEPOSE)],
         confidences=confidences,
@@ -336,4 +345,17 @@ def _to_detection(
         seconds=seconds,
         detector_score=score,
         presence=found.presence,
+        person_mask=person_mask,
+    )
+
+
+def _to_original_matrix(loaded: LoadedImage, shift: np.ndarray) -> np.ndarray:
+    """``(2, 3)`` affine: pixels of a working-image part whose corner is ``shift`` -> original
+    photo pixels (:meth:`LoadedImage.to_original` after the shift)."""
+    sx, sy = loaded.scale
+    return np.array(
+        [
+            [1 / sx, 0.0, (shift[0] + 0.5) / sx - 0.5],
+            [0.0, 1 / sy, (shift[1] + 0.5) / sy - 0.5],
+        ]
     )

@@ -4,7 +4,9 @@ Left to right:
 
 1. the photo, cut to the network's square crop box: the detected 2D keypoints (white dots,
    hollow when the detector's confidence is below 0.5), the reprojected skeletons of the
-   posterior samples (thin, semi-transparent) and of the mode (thick);
+   posterior samples (thin, semi-transparent) and of the mode (thick), the outline of
+   BlazePose's person mask (blue, probability 0.5) and the outline of the mode's silhouette
+   (its projected mesh, thin red);
 2. the mode mesh from the front (the camera's view) and
 3. from the side (seen from the photo's right), both coloured by per-vertex uncertainty;
 4. the colour bar of the uncertainty scale, in centimetres.
@@ -17,6 +19,7 @@ silhouette; skeletons are drawn at twice the size too.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -25,6 +28,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 from hkpd.coco_keypoints import COCO17_LIMBS
 from hkpd.prediction.crop import CropTransform
+from hkpd.prediction.detection.person_mask import MASK_THRESHOLD, PersonMask
 from hkpd.prediction.exports.uncertainty_colours import (
     UncertaintyColourScale,
     vertex_to_face_values,
@@ -40,6 +44,8 @@ TEXT = (30, 30, 30)
 MODE_COLOUR = (235, 60, 40)
 SAMPLE_COLOUR = (255, 170, 40)
 SAMPLE_ALPHA = 120
+MASK_COLOUR = (30, 110, 230)
+"""Outline of BlazePose's person mask."""
 VIEW_DISTANCE_M = 4.0
 """Distance of the virtual camera from the mesh centre in the mesh renders, metres."""
 
@@ -144,6 +150,7 @@ def draw_skeletons(
     mode_keypoints2d: np.ndarray,
     sample_keypoints2d: np.ndarray | None,
     size: int = 512,
+    outlines: Outlines | None = None,
 ) -> np.ndarray:
     """The photo inside the crop box, with detected keypoints and reprojected skeletons.
 
@@ -154,6 +161,7 @@ def draw_skeletons(
         mode_keypoints2d: ``(17, 2)`` reprojected mode keypoints, original pixels.
         sample_keypoints2d: ``(N, 17, 2)`` reprojected sample keypoints, original pixels.
         size: side of the returned square, pixels.
+        outlines: the person mask and mode silhouette to outline (None: neither).
 
     Returns:
         ``(size, size, 3)`` uint8 RGB.
@@ -175,6 +183,8 @@ def draw_skeletons(
             _draw_bones(draw, view.image_to_crop(sample), (*SAMPLE_COLOUR, SAMPLE_ALPHA), line)
     canvas = Image.alpha_composite(canvas, overlay)
     draw = ImageDraw.Draw(canvas)
+    if outlines is not None:
+        _draw_outlines(draw, outlines, view, line)
     _draw_bones(draw, view.image_to_crop(np.asarray(mode_keypoints2d)), MODE_COLOUR, 2 * line)
     radius = 2.5 * line
     for (u, v), confidence in zip(
@@ -186,6 +196,56 @@ def draw_skeletons(
         box = (u - radius, v - radius, u + radius, v + radius)
         draw.ellipse(box, fill=fill, outline=(20, 20, 20), width=max(2, line // 2 + 1))
     return np.asarray(canvas.convert("RGB").resize((size, size), Image.Resampling.LANCZOS))
+
+
+@dataclass(frozen=True)
+class Outlines:
+    """What the photo panel outlines besides the skeletons.
+
+    Attributes:
+        person_mask: BlazePose's segmentation of the person (None: not drawn).
+        mode_vertices2d: ``(V, 2)`` the mode's vertices projected into original-photo pixels
+            (None: not drawn).
+        faces: ``(F, 3)`` the mesh's triangles (needed with ``mode_vertices2d``).
+    """
+
+    person_mask: PersonMask | None = None
+    mode_vertices2d: np.ndarray | None = None
+    faces: np.ndarray | None = None
+
+
+def _draw_outlines(
+    draw: ImageDraw.ImageDraw, outlines: Outlines, view: CropTransform, line: int
+) -> None:
+    """The mask's 0.5 outline and the mode silhouette's outline, in ``view``'s pixels."""
+    shape = (view.size, view.size)
+    if outlines.person_mask is not None:
+        probability = outlines.person_mask.in_frame(view.affine_matrix(), shape)
+        _draw_contours(draw, probability > MASK_THRESHOLD, MASK_COLOUR, line)
+    if outlines.mode_vertices2d is not None and outlines.faces is not None:
+        points = view.image_to_crop(np.asarray(outlines.mode_vertices2d, np.float64))
+        _draw_contours(draw, mesh_silhouette(points, outlines.faces, shape), MODE_COLOUR, line)
+
+
+def mesh_silhouette(points: np.ndarray, faces: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``(H, W)`` bool: the pixels the triangles ``faces`` of the ``(V, 2)`` projected
+    ``points`` (pixels, centres at integers) cover, each filled on its own (a union)."""
+    silhouette = np.zeros(shape, np.uint8)
+    triangles = np.round(np.asarray(points)[np.asarray(faces)] * 4).astype(np.int32)
+    for triangle in triangles:
+        cv2.fillConvexPoly(silhouette, triangle, 1, lineType=cv2.LINE_8, shift=2)
+    return silhouette > 0
+
+
+def _draw_contours(
+    draw: ImageDraw.ImageDraw, mask: np.ndarray, colour: tuple[int, ...], width: int
+) -> None:
+    """Draw the outer and inner boundaries of the ``(H, W)`` bool ``mask``."""
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+    for contour in contours:
+        points = [tuple(map(float, point)) for point in contour[:, 0]]
+        if len(points) > 1:
+            draw.line([*points, points[0]], fill=colour, width=width, joint="curve")
 
 
 def _draw_bones(
@@ -234,6 +294,7 @@ def make_overview(
     scale: UncertaintyColourScale,
     height: int = 480,
     caption: str = "",
+    outlines: Outlines | None = None,
 ) -> np.ndarray:
     """The whole overview (see the module docstring), ``(H, W, 3)`` uint8 RGB.
 
@@ -246,10 +307,18 @@ def make_overview(
         scale: the uncertainty colour scale.
         height: height of the panels, pixels (the picture adds a title row and a footer).
         caption: a line of text for the footer.
+        outlines: the person mask and mode silhouette to outline on the photo (None: neither).
     """
     values = np.asarray(uncertainty, dtype=np.float64)
     skeletons = draw_skeletons(
-        photo, crop, keypoints, confidences, mode_keypoints2d, sample_keypoints2d, height
+        photo,
+        crop,
+        keypoints,
+        confidences,
+        mode_keypoints2d,
+        sample_keypoints2d,
+        height,
+        outlines,
     )
     front, side, masks = render_uncertainty_views(mode_vertices, faces, values, scale, height)
     front = _trim_columns(front, masks[0], int(height * 0.42), height // 20)
@@ -283,6 +352,10 @@ def make_overview(
     legend_x += 27 + int(draw.textlength("mode", font=small)) + 14
     draw.line((legend_x, legend_y, legend_x + 22, legend_y), fill=SAMPLE_COLOUR, width=3)
     draw.text((legend_x + 27, legend_y), "samples", fill=TEXT, font=small, anchor="lm")
+    if outlines is not None and outlines.person_mask is not None:
+        legend_x += 27 + int(draw.textlength("samples", font=small)) + 14
+        draw.line((legend_x, legend_y, legend_x + 22, legend_y), fill=MASK_COLOUR, width=3)
+        draw.text((legend_x + 27, legend_y), "mask", fill=TEXT, font=small, anchor="lm")
     mean_cm, max_cm = 100 * float(values.mean()), 100 * float(values.max())
     stats = f"vertex uncertainty: mean {mean_cm:.1f} cm, max {max_cm:.1f} cm"
     text = f"{stats}   {caption}".strip()

@@ -1,5 +1,5 @@
-"""Writers for what ``hkpd-predict`` saves: meshes (PLY / GLB / OBJ), the distribution (NPZ) and
-the JSON summary.
+"""Writers for what ``hkpd-predict`` saves: meshes (PLY / GLB / OBJ), the distribution (NPZ),
+the person mask (PNG) and the JSON summary.
 
 Frames:
 
@@ -24,8 +24,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 import trimesh
+from PIL import Image
 
 if TYPE_CHECKING:
+    from hkpd.prediction.detection.person_mask import PersonMask
     from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
 
 MESH_FORMATS = ("ply", "glb", "obj")
@@ -35,6 +37,9 @@ ARRAY_FORMAT = "npz"
 """The format of the distribution parameters and all vertices as arrays."""
 
 OUTPUT_FORMATS = (*MESH_FORMATS, ARRAY_FORMAT)
+
+PERSON_MASK_FILE = "person_mask.png"
+"""BlazePose's person mask, written beside the meshes (:func:`write_person_mask`)."""
 
 DISPLAY_FROM_CAMERA = np.diag([1.0, -1.0, -1.0])
 """``(3, 3)`` rotation from the camera-aligned body frame (y down, z away) to the Y-up display
@@ -208,3 +213,12 @@ def write_json(path: Path, data: Mapping[str, Any]) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(_plain(data), indent=2) + "\n")
     return path
+
+
+def write_person_mask(path: Path, mask: PersonMask) -> Path:
+    """Write ``mask`` as an 8-bit grayscale PNG of the original photo's size: each pixel is
+    ``round(255 × p)``, ``p`` the probability that it shows the person (threshold at 128 for
+    BlazePose's 0.5)."""
+    probability = mask.in_photo()
+    Image.fromarray(np.round(probability * 255.0).astype(np.uint8), mode="L").save(path)
+    return Path(path)
