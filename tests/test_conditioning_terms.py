@@ -97,6 +97,7 @@ class ShapePull:
 
     residual_shape = (1, 1)
     needs_vertices = False
+    surface_vertices = None
 
     def __init__(self, index: int, target: float, sigma: float, robust_scale=None) -> None:
         self.name = "shape_pull"
@@ -114,6 +115,7 @@ class VertexProbe:
     residual_shape = (1, 1)
     robust_scale = None
     needs_vertices = True
+    surface_vertices = None
 
     def __init__(self) -> None:
         self.shapes: list[tuple[int, ...]] = []

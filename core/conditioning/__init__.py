@@ -6,7 +6,7 @@ solve, :mod:`hkpd.conditioning.keypoint_fit`) and turns the fit's Laplace approx
 into the same families (per-joint matrix-Fisher, diagonal Gaussian shape,
 :mod:`hkpd.conditioning.laplace`), so the rejection sampler and everything after it work
 unchanged. The evidence is a list of :class:`EvidenceTerm` (the keypoints'
-:class:`KeypointTerm` today), so a new kind of evidence plugs in without touching the solver or
+:class:`KeypointTerm`, and the person's mask, :class:`SilhouetteTerm`), so a new kind of evidence plugs in without touching the solver or
 the Laplace step. The maths is in ``docs/evidence.md``.
 
 It sits between the body model and prediction: it takes plain tensors (no network, no photo).
@@ -22,6 +22,11 @@ from hkpd.conditioning.keypoint_fit import (
 )
 from hkpd.conditioning.keypoint_term import KeypointTerm
 from hkpd.conditioning.laplace import marginal_precisions, matrix_fisher_from_precision
+from hkpd.conditioning.silhouette_term import (
+    SilhouetteConfig,
+    SilhouetteEvidence,
+    SilhouetteTerm,
+)
 
 __all__ = [
     "EvidenceConfig",
@@ -30,6 +35,9 @@ __all__ = [
     "KeypointFit",
     "KeypointTerm",
     "PosedBodies",
+    "SilhouetteConfig",
+    "SilhouetteEvidence",
+    "SilhouetteTerm",
     "condition_on_keypoints",
     "fit_evidence",
     "marginal_precisions",

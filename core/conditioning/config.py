@@ -41,6 +41,11 @@ class EvidenceConfig:
             ``"marginal"`` its marginal precision (evidence shared along a chain counted once
             per chain, but samples drawn joint by joint then scatter the limb ends).
             ``docs/evidence.md`` says how the defaults were chosen.
+        rigid_spread: how the Laplace step treats the global rotation and the camera, which
+            the samples keep fixed: ``"conditional"`` holds them at the fit (the pose and
+            shape precisions are the blocks of the Hessian given them, so height cannot trade
+            off against the camera's scale), ``"marginal"`` marginalises them (the Schur
+            complement of their block: pose and shape precisions as if they were unknown).
     """
 
     prior_weight: float = 0.5
@@ -52,6 +57,7 @@ class EvidenceConfig:
     max_iterations: int = 30
     tolerance: float = 1e-6
     joint_spread: str = "conditional"
+    rigid_spread: str = "conditional"
 
     def __post_init__(self) -> None:
         positive = {
@@ -65,11 +71,12 @@ class EvidenceConfig:
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"EvidenceConfig.{name} must be a positive number, got {value}")
-        if self.joint_spread not in ("marginal", "conditional"):
-            raise ValueError(
-                f"EvidenceConfig.joint_spread must be 'marginal' or 'conditional', got "
-                f"{self.joint_spread!r}"
-            )
+        for name in ("joint_spread", "rigid_spread"):
+            if getattr(self, name) not in ("marginal", "conditional"):
+                raise ValueError(
+                    f"EvidenceConfig.{name} must be 'marginal' or 'conditional', got "
+                    f"{getattr(self, name)!r}"
+                )
         if self.min_keypoints < 1 or self.max_iterations < 1:
             raise ValueError("EvidenceConfig.min_keypoints and max_iterations must be >= 1")
 
