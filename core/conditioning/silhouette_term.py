@@ -103,6 +103,8 @@ class SilhouetteConfig:
             point that counts as touching (the surface samples' spacing), same units.
         robust_scale: Cauchy scale of every group, in sigmas.
         surface_points: number of surface vertices projected (farthest-point samples).
+        reach_points: the first this many of them (spread evenly too) are the body that a mask
+            boundary point must be near (the coarse mask → body pull; fewer is cheaper).
         boundary_points: number of mask boundary points sampled (farthest-point samples).
         threshold: mask probability at and above which a pixel counts as the person.
     """
@@ -115,7 +117,8 @@ class SilhouetteConfig:
     boundary_tolerance: float = 0.004
     robust_scale: float = 3.0
     surface_points: int = 400
-    boundary_points: int = 160
+    reach_points: int = 200
+    boundary_points: int = 100
     threshold: float = 0.5
 
     def __post_init__(self) -> None:
@@ -124,7 +127,8 @@ class SilhouetteConfig:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"SilhouetteConfig.{name} must be positive, got {value}")
-        if self.boundary_tolerance < 0 or self.surface_points < 1 or self.boundary_points < 1:
+        counts = (self.surface_points, self.reach_points, self.boundary_points)
+        if self.boundary_tolerance < 0 or min(counts) < 1:
             raise ValueError("SilhouetteConfig: tolerance >= 0 and point counts >= 1 are needed")
 
 
@@ -192,10 +196,11 @@ class SilhouetteTerm:
         body_to_mask = torch.stack(
             (outside / self.outside_sigma_px, rim * inside / self.inside_sigma_px), dim=-1
         ) * known.unsqueeze(-1)
-        lead = pixels.shape[:-2]
-        flat = pixels.reshape(-1, *pixels.shape[-2:])
-        gaps = torch.cdist(self.boundary.expand(flat.shape[0], -1, -1), flat)  # (NB, M, P)
-        nearest = gaps.min(dim=-1).values.reshape(*lead, -1)
+        reach = pixels[..., : self.config.reach_points, :]  # (N, B, R, 2)
+        across = reach[..., 0, None] - self.boundary[:, 0]  # (N, B, R, M)
+        down = reach[..., 1, None] - self.boundary[:, 1]
+        gaps = torch.addcmul(across * across, down, down)
+        nearest = gaps.amin(dim=-2).clamp_min(1e-12).sqrt()  # (N, B, M)
         mask_to_body = (
             (nearest - self.tolerance_px).clamp_min(0.0) / self.boundary_sigma_px
         ) * self.boundary_used
