@@ -1,7 +1,7 @@
 """The silhouette term: synthetic bodies' exact masks (rasterised with the fit's own camera)
-move the fit's shape towards the truth (PVE-T-SC lower on every body, girth read), a wider mask raises girth (β₂, +20 % volume per unit
-in this body model), a box clears the evidence inside it, and the surface points the term
-reads are the mesh's own vertices."""
+move the fit's shape towards the truth (PVE-T-SC lower on every body, girth read), a wider mask
+raises girth (β₂, +20 % volume per unit in this body model), a box clears the evidence inside
+it, and the surface points the term reads are the mesh's own vertices."""
 
 from __future__ import annotations
 

@@ -129,7 +129,9 @@ def run_row(
         seconds.append(time.perf_counter() - began)
         chosen = fit.conditioned.map(lambda t: t[None]) if fit.succeeded else example.start
         rows.append(chosen)
-    stacked = BodyDistribution(*(torch.cat(parts) for parts in zip(*(r.tensors() for r in rows))))
+    stacked = BodyDistribution(
+        *(torch.cat(parts) for parts in zip(*(r.tensors() for r in rows), strict=True))
+    )
     return stacked, seconds
 
 
@@ -181,8 +183,8 @@ def main() -> None:
     body = BodyModel()
     body64 = BodyModel().double()
     print(f"{len(examples)} validation examples; silhouette {silhouette}")
-    header = "| mask | laplace | R² β₀ | R² β₁…₉ | PVE-T-SC mm | z² β₀ | z² β₁…₉ | MPJPE-PA mm | 2D px | fit ms |"
-    print(header)
+    columns = "mask | laplace | R² β₀ | R² β₁…₉ | PVE-T-SC mm | z² β₀ | z² β₁…₉ | MPJPE-PA mm"
+    print(f"| {columns} | 2D px | fit ms |")
     print("|" + "---|" * 10)
     for mask in (None, *args.masks):
         for rigid in ("conditional", "marginal"):
