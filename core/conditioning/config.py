@@ -57,7 +57,7 @@ class EvidenceConfig:
     max_iterations: int = 30
     tolerance: float = 1e-6
     joint_spread: str = "conditional"
-    rigid_spread: str = "conditional"
+    rigid_spread: str = "marginal"
 
     def __post_init__(self) -> None:
         positive = {

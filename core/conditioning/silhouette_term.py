@@ -97,6 +97,9 @@ class SilhouetteConfig:
         inside_band: an outline point deeper inside the mask than about this (same units) is
             taken for one hidden behind another part of the body (the side of an arm in front of
             the torso): its distance saturates there, ``band · tanh(d / band)``.
+        inside_margin: how much larger than the body the mask is expected to be (clothing, hair,
+            a detector's blur), same units: an outline point this deep inside the mask, or a
+            boundary point this far beyond the tolerance from the body, counts as touching.
         rim_width: how far from the outline a surface point still counts as on it: its weight
             is ``exp(-½ (n_z / rim_width)²)``, ``n_z`` the view component of its unit normal.
         boundary_tolerance: distance from a boundary point to the nearest projected surface
@@ -113,6 +116,7 @@ class SilhouetteConfig:
     inside_sigma: float = 0.02
     boundary_sigma: float = 0.05
     inside_band: float = 0.012
+    inside_margin: float = 0.0
     rim_width: float = 0.2
     boundary_tolerance: float = 0.004
     robust_scale: float = 3.0
@@ -128,7 +132,7 @@ class SilhouetteConfig:
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"SilhouetteConfig.{name} must be positive, got {value}")
         counts = (self.surface_points, self.reach_points, self.boundary_points)
-        if self.boundary_tolerance < 0 or min(counts) < 1:
+        if self.boundary_tolerance < 0 or self.inside_margin < 0 or min(counts) < 1:
             raise ValueError("SilhouetteConfig: tolerance >= 0 and point counts >= 1 are needed")
 
 
@@ -172,7 +176,8 @@ class SilhouetteTerm:
         self.inside_sigma_px = config.inside_sigma * pixels_per_unit
         self.inside_band_px = config.inside_band * pixels_per_unit
         self.boundary_sigma_px = config.boundary_sigma * pixels_per_unit
-        self.tolerance_px = config.boundary_tolerance * pixels_per_unit
+        self.margin_px = config.inside_margin * pixels_per_unit
+        self.tolerance_px = (config.boundary_tolerance + config.inside_margin) * pixels_per_unit
         self.residual_shape = (config.surface_points + config.boundary_points, 2)
 
     @property
@@ -191,7 +196,8 @@ class SilhouetteTerm:
         rim = torch.exp(-0.5 * (view / self.config.rim_width).square())
         known = _sample_bilinear(self.known_map, pixels)
         outside = (_sample_bilinear(self.outside_distance, pixels) - 0.5).clamp_min(0.0)
-        inside = (_sample_bilinear(self.inside_distance, pixels) - 0.5).clamp_min(0.0)
+        inside = _sample_bilinear(self.inside_distance, pixels) - 0.5 - self.margin_px
+        inside = inside.clamp_min(0.0)
         inside = self.inside_band_px * torch.tanh(inside / self.inside_band_px)
         body_to_mask = torch.stack(
             (outside / self.outside_sigma_px, rim * inside / self.inside_sigma_px), dim=-1
