@@ -13,6 +13,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
 
+_RIGID_SPREADS = ("conditional", "shape", "marginal")
+
 
 @dataclass(frozen=True)
 class EvidenceConfig:
@@ -44,8 +46,9 @@ class EvidenceConfig:
         rigid_spread: how the Laplace step treats the global rotation and the camera, which
             the samples keep fixed: ``"conditional"`` holds them at the fit (the pose and
             shape precisions are the blocks of the Hessian given them, so height cannot trade
-            off against the camera's scale), ``"marginal"`` marginalises them (the Schur
-            complement of their block: pose and shape precisions as if they were unknown).
+            off against the camera's scale), ``"shape"`` marginalises them for the shape
+            Gaussian (the Schur complement of their block: the shape's spread as if they were
+            unknown; the joints as with ``"conditional"``), ``"marginal"`` for the joints' too.
     """
 
     prior_weight: float = 0.5
@@ -57,7 +60,7 @@ class EvidenceConfig:
     max_iterations: int = 30
     tolerance: float = 1e-6
     joint_spread: str = "conditional"
-    rigid_spread: str = "marginal"
+    rigid_spread: str = "shape"
 
     def __post_init__(self) -> None:
         positive = {
@@ -71,11 +74,11 @@ class EvidenceConfig:
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"EvidenceConfig.{name} must be a positive number, got {value}")
-        for name in ("joint_spread", "rigid_spread"):
-            if getattr(self, name) not in ("marginal", "conditional"):
+        spreads = {"joint_spread": ("marginal", "conditional"), "rigid_spread": _RIGID_SPREADS}
+        for name, allowed in spreads.items():
+            if getattr(self, name) not in allowed:
                 raise ValueError(
-                    f"EvidenceConfig.{name} must be 'marginal' or 'conditional', got "
-                    f"{getattr(self, name)!r}"
+                    f"EvidenceConfig.{name} must be one of {allowed}, got {getattr(self, name)!r}"
                 )
         if self.min_keypoints < 1 or self.max_iterations < 1:
             raise ValueError("EvidenceConfig.min_keypoints and max_iterations must be >= 1")

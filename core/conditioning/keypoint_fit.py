@@ -11,8 +11,9 @@ term's evidence without knowing the terms:
 
 - the global rotation and camera are fixed at the fit in the samples (they vary pose and shape
   only, as they do for the network's own distribution); the pose and shape precisions either
-  condition on them (``EvidenceConfig.rigid_spread="conditional"``) or marginalise them
-  (``"marginal"``, a Schur complement: height may then trade off against the camera's scale);
+  condition on them (``EvidenceConfig.rigid_spread="conditional"``) or marginalise them, for
+  the shape Gaussian only (``"shape"``, the default: height may then trade off against the
+  camera's scale) or for the joints too (``"marginal"``), by a Schur complement;
 - each joint's matrix-Fisher has the fitted rotation as its mode and, as its curvature, the
   joint's precision given the other joints (``EvidenceConfig.joint_spread="conditional"``, the
   diagonal block of ``H``) or its marginal precision (``"marginal"``,
@@ -116,18 +117,24 @@ def laplace_posterior(
         start: which start's estimate and Hessian.
         spread: ``EvidenceConfig.joint_spread``.
         rigid_spread: ``EvidenceConfig.rigid_spread``: the global rotation and camera held
-            fixed (``"conditional"``) or marginalised (``"marginal"``).
+            fixed (``"conditional"``), marginalised for the shape Gaussian only (``"shape"``),
+            or for the shape and the joints (``"marginal"``).
     """
-    precision = pose_shape_precision(result.hessian[start], rigid_spread)
+    hessian = result.hessian[start]
+    given_rigid = pose_shape_precision(hessian, "conditional")
+    free_rigid = given_rigid if rigid_spread == "conditional" else None
+    if free_rigid is None:
+        free_rigid = pose_shape_precision(hessian, "marginal")
+    joints_from = free_rigid if rigid_spread == "marginal" else given_rigid
     if spread == "marginal":
-        joint_precision = marginal_precisions(precision, NUM_BODY_JOINTS)
+        joint_precision = marginal_precisions(joints_from, NUM_BODY_JOINTS)
     else:
         spans = [slice(3 * joint, 3 * joint + 3) for joint in range(NUM_BODY_JOINTS)]
-        joint_precision = torch.stack([precision[span, span] for span in spans])
+        joint_precision = torch.stack([joints_from[span, span] for span in spans])
     state = result.state
     body_pose = state.body_pose()[start]
     F = matrix_fisher_from_precision(body_pose, joint_precision)
-    shape_covariance = torch.linalg.inv(precision)[POSE.stop :, POSE.stop :]
+    shape_covariance = torch.linalg.inv(free_rigid)[POSE.stop :, POSE.stop :]
     return BodyDistribution(
         F=F,
         shape_mean=state.betas[start],
@@ -141,7 +148,7 @@ def pose_shape_precision(hessian: torch.Tensor, rigid_spread: str) -> torch.Tens
     """``(69 + K, 69 + K)`` precision of pose and shape from the fit's ``(85, 85)`` Hessian.
 
     ``"conditional"``: the pose-and-shape block, the precision given the global rotation and
-    camera. ``"marginal"``: its Schur complement ``H_kk - H_kr H_rr⁻¹ H_rk`` (``r`` the global
+    camera. Otherwise its Schur complement ``H_kk - H_kr H_rr⁻¹ H_rk`` (``r`` the global
     rotation and camera), the precision with them marginalised (the inverse of the
     pose-and-shape block of ``H⁻¹``).
     """

@@ -5,12 +5,12 @@ the example, detector-like keypoints (:mod:`hkpd.synthesis.detector_noise`) are 
 evidence, and the body's exact silhouette (the renderer's part map, perspective camera) is the
 mask, as it is or degraded (dilated for clothing and hair, its boundary blurred, then jittered
 by a smooth random field). Each row fits with keypoints only or keypoints + silhouette, and
-builds the Laplace posterior with the global rotation and camera held fixed (``conditional``)
-or marginalised (``marginal``). It prints, per row: R² of the shape mean (β₀; mean over
-β₁…β₉), PVE-T-SC (mm), z² (mean of (pred − true)²/std²: β₀, and min/max over β₁…β₉), the
-mode's MPJPE-PA (mm) and 2D keypoint error (px at 256), the pose coverage (share of joints
-whose true rotation lies in the 50 % / 90 % region of 25 samples: 0.5 / 0.9 is calibrated),
-and the median fit time (ms).
+builds the Laplace posterior with the global rotation and camera held fixed (``conditional``),
+marginalised for the shape (``shape``) or for the shape and the joints (``marginal``). It
+prints, per row: R² of the shape mean (β₀; mean over β₁…β₉), PVE-T-SC (mm), z² (mean of (pred −
+true)²/std²: β₀, and min/max over β₁…β₉), the mode's MPJPE-PA (mm) and 2D keypoint error (px at
+256), the pose coverage (share of joints whose true rotation lies in the 50 % / 90 % region of
+25 samples: 0.5 / 0.9 is calibrated), and the median fit time (ms).
 
     .venv/bin/python docs/experiments/silhouette_term_validation.py --count 100
 
@@ -199,7 +199,7 @@ def main() -> None:
     print(f"| {columns} | 2D px | pose coverage 50/90 | fit ms |")
     print("|" + "---|" * 11)
     for mask in (None, *args.masks):
-        for rigid in ("conditional", "marginal"):
+        for rigid in ("conditional", "shape", "marginal"):
             config = replace(EvidenceConfig(), rigid_spread=rigid)
             posterior, seconds = run_row(examples, body64, config, mask, silhouette)
             s = scores(posterior, truth, body, examples[0].keypoints.crop_size)
