@@ -20,6 +20,7 @@ from hkpd.conditioning import (
     SilhouetteConfig,
     SilhouetteEvidence,
     SilhouetteTerm,
+    SurfaceSamples,
     condition_on_keypoints,
 )
 from hkpd.conditioning.surface_points import vertex_subset_model
@@ -33,6 +34,26 @@ GIRTH = 2
 @pytest.fixture(scope="module")
 def body64() -> BodyModel:
     return BodyModel().double()
+
+
+_SURFACES: dict[int, SurfaceSamples] = {}
+
+
+def surface_of(body: BodyModel) -> SurfaceSamples:
+    """The body's surface samples, made once (as a predictor would)."""
+    if id(body) not in _SURFACES:
+        _SURFACES[id(body)] = SurfaceSamples.of(body)
+    return _SURFACES[id(body)]
+
+
+def test_surface_samples_have_outward_normals(body64) -> None:
+    surface = surface_of(body64)
+    assert surface.count == 400 and len(set(surface.points.tolist())) == 400
+    rest = body64.v_template
+    points, first, second = (rest[i] for i in (surface.points, surface.first, surface.second))
+    normals = torch.linalg.cross(first - points, second - points)
+    outward = ((points - rest.mean(0)) * normals).sum(-1) > 0
+    assert outward.double().mean() > 0.8  # away from the centre, for all but hollows
 
 
 class Problem:
@@ -74,7 +95,7 @@ class Problem:
         terms = []
         if mask is not None:
             evidence = SilhouetteEvidence.from_arrays(mask.astype(np.float64), known)
-            terms = [SilhouetteTerm(evidence, body, config)]
+            terms = [SilhouetteTerm(evidence, surface_of(body), config)]
         return condition_on_keypoints(body, self.start, self.keypoints, EvidenceConfig(), terms)
 
 
@@ -144,7 +165,7 @@ def test_the_term_is_surer_of_girth(body64, problem) -> None:
 def test_residuals_are_zero_where_nothing_is_known(body64, problem) -> None:
     nothing = np.zeros((SIZE, SIZE), dtype=bool)
     evidence = SilhouetteEvidence.from_arrays(problem.mask.astype(np.float64), nothing)
-    term = SilhouetteTerm(evidence, body64)
+    term = SilhouetteTerm(evidence, surface_of(body64))
     assert term.boundary_count == 0
     fit = problem.fit(body64, problem.mask, nothing)
     plain = problem.fit(body64, None)

@@ -27,6 +27,7 @@ from hkpd.conditioning.silhouette_term import (
     SilhouetteEvidence,
     SilhouetteTerm,
 )
+from hkpd.conditioning.surface_points import SurfaceSamples
 
 __all__ = [
     "EvidenceConfig",
@@ -38,6 +39,7 @@ __all__ = [
     "SilhouetteConfig",
     "SilhouetteEvidence",
     "SilhouetteTerm",
+    "SurfaceSamples",
     "condition_on_keypoints",
     "fit_evidence",
     "marginal_precisions",

@@ -34,10 +34,9 @@ import numpy as np
 import torch
 import torch.nn.functional as functional
 
-from hkpd.body import BodyModel
 from hkpd.camera_conventions import ndc_to_pixels
 from hkpd.conditioning.evidence_term import PosedBodies
-from hkpd.conditioning.surface_points import farthest_point_indices
+from hkpd.conditioning.surface_points import SurfaceSamples, farthest_point_indices
 
 _UNKNOWN_MARGIN_PIXELS = 2
 """Mask boundary pixels within this many pixels of an unknown one are not the person's outline."""
@@ -105,9 +104,8 @@ class SilhouetteConfig:
         boundary_tolerance: distance from a boundary point to the nearest projected surface
             point that counts as touching (the surface samples' spacing), same units.
         robust_scale: Cauchy scale of every group, in sigmas.
-        surface_points: number of surface vertices projected (farthest-point samples).
-        reach_points: the first this many of them (spread evenly too) are the body that a mask
-            boundary point must be near (the coarse mask → body pull; fewer is cheaper).
+        reach_points: the first this many surface points (spread evenly too) are the body that
+            a mask boundary point must be near (the coarse mask → body pull; fewer is cheaper).
         boundary_points: number of mask boundary points sampled (farthest-point samples).
         threshold: mask probability at and above which a pixel counts as the person.
     """
@@ -120,7 +118,6 @@ class SilhouetteConfig:
     rim_width: float = 0.2
     boundary_tolerance: float = 0.004
     robust_scale: float = 3.0
-    surface_points: int = 400
     reach_points: int = 200
     boundary_points: int = 100
     threshold: float = 0.5
@@ -131,7 +128,7 @@ class SilhouetteConfig:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"SilhouetteConfig.{name} must be positive, got {value}")
-        counts = (self.surface_points, self.reach_points, self.boundary_points)
+        counts = (self.reach_points, self.boundary_points)
         if self.boundary_tolerance < 0 or self.inside_margin < 0 or min(counts) < 1:
             raise ValueError("SilhouetteConfig: tolerance >= 0 and point counts >= 1 are needed")
 
@@ -141,7 +138,8 @@ class SilhouetteTerm:
 
     Args:
         evidence: the mask in the crop the fit's cameras refer to.
-        body: the fit's body model (its rest mesh gives the surface samples).
+        surface: the surface points of the fit's body model (``SurfaceSamples.of(body64)``,
+            made once per model).
         config: the term's settings (defaults: :class:`SilhouetteConfig`).
     """
 
@@ -151,16 +149,15 @@ class SilhouetteTerm:
     def __init__(
         self,
         evidence: SilhouetteEvidence,
-        body: BodyModel,
+        surface: SurfaceSamples,
         config: SilhouetteConfig | None = None,
     ) -> None:
         config = config or SilhouetteConfig()
         self.config = config
         self.robust_scale: float | None = config.robust_scale
         self.crop_size = evidence.crop_size
-        dtype, device = torch.float64, body.device
-        sampled = farthest_point_indices(body.v_template.to(dtype), config.surface_points)
-        self.surface_vertices = torch.cat(_with_face_neighbours(sampled, body.faces))
+        dtype, device = torch.float64, surface.points.device
+        self.surface_vertices = surface.vertex_indices()
         maps = _mask_maps(evidence, config)
         self.outside_distance = torch.as_tensor(maps.outside_distance, dtype=dtype, device=device)
         self.inside_distance = torch.as_tensor(maps.inside_distance, dtype=dtype, device=device)
@@ -178,7 +175,7 @@ class SilhouetteTerm:
         self.boundary_sigma_px = config.boundary_sigma * pixels_per_unit
         self.margin_px = config.inside_margin * pixels_per_unit
         self.tolerance_px = (config.boundary_tolerance + config.inside_margin) * pixels_per_unit
-        self.residual_shape = (config.surface_points + config.boundary_points, 2)
+        self.residual_shape = (surface.count + config.boundary_points, 2)
 
     @property
     def boundary_count(self) -> int:
@@ -186,7 +183,7 @@ class SilhouetteTerm:
         return int(self.boundary_used.sum())
 
     def residuals(self, posed: PosedBodies) -> torch.Tensor:
-        """``(N, B, surface_points + boundary_points, 2)``: per surface point (outside the
+        """``(N, B, P + boundary_points, 2)``: per surface point (outside the
         mask, on the outline inside the mask), then per boundary point (its gap to the body,
         and a zero)."""
         points, first, second = posed.surface[self.name].chunk(3, dim=-2)  # (N, B, P, 3) each
@@ -212,23 +209,6 @@ class SilhouetteTerm:
         ) * self.boundary_used
         mask_to_body = torch.stack((mask_to_body, torch.zeros_like(mask_to_body)), dim=-1)
         return torch.cat((body_to_mask, mask_to_body), dim=-2)
-
-
-def _with_face_neighbours(
-    vertices: torch.Tensor, faces: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """``vertices (P,)`` and, for each, the two other corners ``a, b`` of a face holding it, in
-    the face's order, so ``(a - v) × (b - v)`` is the face's outward normal (faces are
-    counter-clockwise seen from outside)."""
-    hits = faces[None] == vertices[:, None, None]  # (P, F, 3)
-    face = hits.any(-1).to(torch.int8).argmax(-1)  # (P,) first face holding each vertex
-    corner = hits[torch.arange(vertices.numel()), face].to(torch.int8).argmax(-1)
-    rows = faces[face]
-    return (
-        vertices,
-        rows.gather(1, ((corner + 1) % 3)[:, None])[:, 0],
-        rows.gather(1, ((corner + 2) % 3)[:, None])[:, 0],
-    )
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,7 @@ from hkpd.conditioning import (
     SilhouetteConfig,
     SilhouetteEvidence,
     SilhouetteTerm,
+    SurfaceSamples,
     condition_on_keypoints,
 )
 from hkpd.distributions import BodyDistribution
@@ -121,11 +122,12 @@ def run_row(
 ) -> tuple[BodyDistribution, list[float]]:
     """The posterior of every example (the network's where the fit falls back) and fit times."""
     rows, seconds = [], []
+    surface = SurfaceSamples.of(body64)
     for example in examples:
         terms = []
         if mask is not None:
             evidence = SilhouetteEvidence.from_arrays(example.masks[mask], None)
-            terms = [SilhouetteTerm(evidence, body64, silhouette)]
+            terms = [SilhouetteTerm(evidence, surface, silhouette)]
         began = time.perf_counter()
         fit = condition_on_keypoints(body64, example.start, example.keypoints, config, terms)
         seconds.append(time.perf_counter() - began)
