@@ -77,8 +77,9 @@ class EvidenceConfig:
         spreads = {"joint_spread": ("marginal", "conditional"), "rigid_spread": _RIGID_SPREADS}
         for name, allowed in spreads.items():
             if getattr(self, name) not in allowed:
+                choices = ", ".join(map(repr, allowed[:-1])) + f" or {allowed[-1]!r}"
                 raise ValueError(
-                    f"EvidenceConfig.{name} must be one of {allowed}, got {getattr(self, name)!r}"
+                    f"EvidenceConfig.{name} must be {choices}, got {getattr(self, name)!r}"
                 )
         if self.min_keypoints < 1 or self.max_iterations < 1:
             raise ValueError("EvidenceConfig.min_keypoints and max_iterations must be >= 1")
