@@ -172,6 +172,15 @@ def test_residuals_are_zero_where_nothing_is_known(body64, problem) -> None:
     torch.testing.assert_close(fit.conditioned.shape_mean, plain.conditioned.shape_mean)
 
 
+def test_an_empty_mask_is_no_evidence(body64, problem) -> None:
+    empty = np.zeros((SIZE, SIZE))
+    term = SilhouetteTerm(SilhouetteEvidence.from_arrays(empty, None), surface_of(body64))
+    assert term.boundary_count == 0 and not term.outside_distance.any()
+    fit = problem.fit(body64, empty)
+    plain = problem.fit(body64, None)
+    torch.testing.assert_close(fit.conditioned.shape_mean, plain.conditioned.shape_mean)
+
+
 def test_settings_are_checked() -> None:
     with pytest.raises(ValueError, match="outside_sigma"):
         SilhouetteConfig(outside_sigma=0.0)

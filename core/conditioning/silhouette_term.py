@@ -237,6 +237,8 @@ def _mask_maps(evidence: SilhouetteEvidence, config: SilhouetteConfig) -> _MaskM
     inside = cv2.distanceTransform(
         (person | ~known).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE
     ).astype(np.float64)
+    if not person.any():  # an empty mask (no detection) is no evidence, not "nobody here"
+        outside, inside = np.zeros_like(outside), np.zeros_like(inside)
     cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
     interior = cv2.erode(person.astype(np.uint8), cross).astype(bool)
     square = np.ones((2 * _UNKNOWN_MARGIN_PIXELS + 1,) * 2, dtype=np.uint8)
