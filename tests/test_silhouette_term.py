@@ -29,6 +29,10 @@ from hkpd.evaluation.metrics import pve_t_sc_from_betas
 
 SIZE = 256
 GIRTH = 2
+EXACT = SilhouetteConfig(
+    outside_sigma=0.01, inside_sigma=0.02, boundary_sigma=0.05, inside_margin=0.0
+)
+"""Settings for an exact mask: half the default sigmas and no clothing margin."""
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +99,7 @@ class Problem:
         terms = []
         if mask is not None:
             evidence = SilhouetteEvidence.from_arrays(mask.astype(np.float64), known)
-            terms = [SilhouetteTerm(evidence, surface_of(body), config)]
+            terms = [SilhouetteTerm(evidence, surface_of(body), config or EXACT)]
         return condition_on_keypoints(body, self.start, self.keypoints, EvidenceConfig(), terms)
 
 
