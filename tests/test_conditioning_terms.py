@@ -20,12 +20,16 @@ from hkpd.conditioning import (
     condition_on_keypoints,
     fit_evidence,
 )
+from hkpd.conditioning.keypoint_fit import pose_shape_precision
 from hkpd.distributions import BodyDistribution
 
 SIZE = 160
 REFERENCE = Path(__file__).parent / "data" / "keypoint_fit_reference.npz"
 """The fit of :func:`reference_problem` as the code computed it before the evidence became a
 list of terms (written once by :func:`write_reference`)."""
+REFERENCE_CONFIG = EvidenceConfig(rigid_spread="conditional")
+"""The settings the reference was recorded with (the Laplace step then held the global rotation
+and camera fixed; ``rigid_spread`` keeps that one setting away)."""
 
 
 @pytest.fixture(scope="module")
@@ -76,13 +80,13 @@ def _fit_record(fit: KeypointFit) -> dict[str, np.ndarray]:
 def write_reference(body64: BodyModel) -> None:
     """Record today's fit of :func:`reference_problem` (run once, before a redesign)."""
     starts, evidence = reference_problem(body64)
-    fit = condition_on_keypoints(body64, starts, evidence, EvidenceConfig())
+    fit = condition_on_keypoints(body64, starts, evidence, REFERENCE_CONFIG)
     np.savez(REFERENCE, **_fit_record(fit))
 
 
 def test_keypoint_only_fit_matches_the_reference(body64) -> None:
     starts, evidence = reference_problem(body64)
-    fit = condition_on_keypoints(body64, starts, evidence, EvidenceConfig())
+    fit = condition_on_keypoints(body64, starts, evidence, REFERENCE_CONFIG)
     reference = np.load(REFERENCE)
     record = _fit_record(fit)
     assert set(record) == set(reference.files)
@@ -97,6 +101,7 @@ class ShapePull:
 
     residual_shape = (1, 1)
     needs_vertices = False
+    surface_vertices = None
 
     def __init__(self, index: int, target: float, sigma: float, robust_scale=None) -> None:
         self.name = "shape_pull"
@@ -114,6 +119,7 @@ class VertexProbe:
     residual_shape = (1, 1)
     robust_scale = None
     needs_vertices = True
+    surface_vertices = None
 
     def __init__(self) -> None:
         self.shapes: list[tuple[int, ...]] = []
@@ -177,3 +183,39 @@ def test_malformed_terms_are_refused_with_their_name(body64) -> None:
     wrong.residual_shape = (2, 1)
     with pytest.raises(ValueError, match="'shape_pull' returned residuals of shape"):
         fit_evidence(body64, starts, [KeypointTerm(evidence, config), wrong], config)
+
+
+def test_marginalising_the_camera_is_the_schur_complement_of_a_known_gaussian() -> None:
+    generator = torch.Generator().manual_seed(5)
+    root = torch.randn(85, 85, generator=generator, dtype=torch.float64)
+    precision = root @ root.T + 5.0 * torch.eye(85, dtype=torch.float64)
+    kept = torch.cat((torch.arange(0, 69), torch.arange(75, 85)))
+    conditional = pose_shape_precision(precision, "conditional")
+    marginal = pose_shape_precision(precision, "marginal")
+    torch.testing.assert_close(conditional, precision[kept][:, kept])
+    # the marginal's covariance is the full covariance's pose-and-shape block
+    covariance = torch.linalg.inv(precision)[kept][:, kept]
+    torch.testing.assert_close(torch.linalg.inv(marginal), covariance, rtol=1e-9, atol=1e-12)
+    # integrating unknowns out can only widen: every marginal std is at least the conditional
+    conditional_std = torch.linalg.inv(conditional).diagonal().sqrt()
+    marginal_std = covariance.diagonal().sqrt()
+    assert (marginal_std >= conditional_std - 1e-12).all()
+    assert (marginal_std > 1.01 * conditional_std).any()
+
+
+def test_height_trades_off_against_the_camera_scale_only_when_it_is_marginalised(body64):
+    starts, evidence = reference_problem(body64)
+    fixed = condition_on_keypoints(body64, starts, evidence, REFERENCE_CONFIG)
+    free = condition_on_keypoints(body64, starts, evidence, EvidenceConfig(rigid_spread="marginal"))
+    # same fit, same modes: only the spreads differ
+    torch.testing.assert_close(free.conditioned.shape_mean, fixed.conditioned.shape_mean)
+    torch.testing.assert_close(free.conditioned.global_orient, fixed.conditioned.global_orient)
+    # the camera scale explains what height (β₀) would: marginalised, β₀ is much less sure
+    assert free.conditioned.shape_std[0] > 1.5 * fixed.conditioned.shape_std[0]
+    assert (free.conditioned.shape_std >= fixed.conditioned.shape_std - 1e-9).all()
+    assert not torch.allclose(free.conditioned.F, fixed.conditioned.F)
+    # "shape" (the default): the shape Gaussian marginalised, the joints exactly as before
+    default = condition_on_keypoints(body64, starts, evidence, EvidenceConfig())
+    assert EvidenceConfig().rigid_spread == "shape"
+    assert torch.equal(default.conditioned.F, fixed.conditioned.F)
+    torch.testing.assert_close(default.conditioned.shape_std, free.conditioned.shape_std)

@@ -1,13 +1,13 @@
-"""Conditioning the network's body distribution on the photo's evidence (2D keypoints today).
+"""Conditioning the network's body distribution on the photo's evidence (2D keypoints, a mask).
 
 The network's distribution is a *prior*; the detected keypoints are *evidence*. This package
 fits the body to the evidence with the prior as regulariser (a batched Levenberg-Marquardt
 solve, :mod:`hkpd.conditioning.keypoint_fit`) and turns the fit's Laplace approximation back
 into the same families (per-joint matrix-Fisher, diagonal Gaussian shape,
 :mod:`hkpd.conditioning.laplace`), so the rejection sampler and everything after it work
-unchanged. The evidence is a list of :class:`EvidenceTerm` (the keypoints'
-:class:`KeypointTerm` today), so a new kind of evidence plugs in without touching the solver or
-the Laplace step. The maths is in ``docs/evidence.md``.
+unchanged. The evidence is a list of :class:`EvidenceTerm` (the keypoints' :class:`KeypointTerm`,
+the person's mask's :class:`SilhouetteTerm`), so a new kind of evidence plugs in without
+touching the solver or the Laplace step. The maths is in ``docs/evidence.md``.
 
 It sits between the body model and prediction: it takes plain tensors (no network, no photo).
 """
@@ -22,6 +22,12 @@ from hkpd.conditioning.keypoint_fit import (
 )
 from hkpd.conditioning.keypoint_term import KeypointTerm
 from hkpd.conditioning.laplace import marginal_precisions, matrix_fisher_from_precision
+from hkpd.conditioning.silhouette_term import (
+    SilhouetteConfig,
+    SilhouetteEvidence,
+    SilhouetteTerm,
+)
+from hkpd.conditioning.surface_points import SurfaceSamples
 
 __all__ = [
     "EvidenceConfig",
@@ -30,6 +36,10 @@ __all__ = [
     "KeypointFit",
     "KeypointTerm",
     "PosedBodies",
+    "SilhouetteConfig",
+    "SilhouetteEvidence",
+    "SilhouetteTerm",
+    "SurfaceSamples",
     "condition_on_keypoints",
     "fit_evidence",
     "marginal_precisions",

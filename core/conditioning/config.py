@@ -13,6 +13,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
 
+_RIGID_SPREADS = ("conditional", "shape", "marginal")
+
 
 @dataclass(frozen=True)
 class EvidenceConfig:
@@ -41,6 +43,12 @@ class EvidenceConfig:
             ``"marginal"`` its marginal precision (evidence shared along a chain counted once
             per chain, but samples drawn joint by joint then scatter the limb ends).
             ``docs/evidence.md`` says how the defaults were chosen.
+        rigid_spread: how the Laplace step treats the global rotation and the camera, which
+            the samples keep fixed: ``"conditional"`` holds them at the fit (the pose and
+            shape precisions are the blocks of the Hessian given them, so height cannot trade
+            off against the camera's scale), ``"shape"`` marginalises them for the shape
+            Gaussian (the Schur complement of their block: the shape's spread as if they were
+            unknown; the joints as with ``"conditional"``), ``"marginal"`` for the joints' too.
     """
 
     prior_weight: float = 0.5
@@ -52,6 +60,7 @@ class EvidenceConfig:
     max_iterations: int = 30
     tolerance: float = 1e-6
     joint_spread: str = "conditional"
+    rigid_spread: str = "shape"
 
     def __post_init__(self) -> None:
         positive = {
@@ -65,11 +74,13 @@ class EvidenceConfig:
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"EvidenceConfig.{name} must be a positive number, got {value}")
-        if self.joint_spread not in ("marginal", "conditional"):
-            raise ValueError(
-                f"EvidenceConfig.joint_spread must be 'marginal' or 'conditional', got "
-                f"{self.joint_spread!r}"
-            )
+        spreads = {"joint_spread": ("marginal", "conditional"), "rigid_spread": _RIGID_SPREADS}
+        for name, allowed in spreads.items():
+            if getattr(self, name) not in allowed:
+                choices = ", ".join(map(repr, allowed[:-1])) + f" or {allowed[-1]!r}"
+                raise ValueError(
+                    f"EvidenceConfig.{name} must be {choices}, got {getattr(self, name)!r}"
+                )
         if self.min_keypoints < 1 or self.max_iterations < 1:
             raise ValueError("EvidenceConfig.min_keypoints and max_iterations must be >= 1")
 

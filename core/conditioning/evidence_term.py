@@ -16,7 +16,8 @@ one, and the Laplace step's families rest on its form (:mod:`hkpd.conditioning.f
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import torch
@@ -35,6 +36,9 @@ class PosedBodies:
             asks for them (:attr:`EvidenceTerm.needs_vertices`: posing them costs ~50× more).
         camera: ``(N, B, 3)`` weak-perspective camera ``[s, tx, ty]``.
         betas: ``(N, B, K)`` shape coefficients.
+        surface: per name of a term that asks for a few mesh vertices
+            (:attr:`EvidenceTerm.surface_vertices`), those vertices posed, ``(N, B, P, 3)``,
+            same frame: posing a few hundred costs a fraction of the whole mesh.
     """
 
     keypoints: torch.Tensor
@@ -42,6 +46,7 @@ class PosedBodies:
     vertices: torch.Tensor | None
     camera: torch.Tensor
     betas: torch.Tensor
+    surface: Mapping[str, torch.Tensor] = field(default_factory=dict)
 
     def project(self, points: torch.Tensor) -> torch.Tensor:
         """``(N, B, P, 3)`` points (metres, this frame) -> ``(N, B, P, 2)`` crop NDC, relative to
@@ -76,7 +81,13 @@ class EvidenceTerm(Protocol):
 
     @property
     def needs_vertices(self) -> bool:
-        """Whether :meth:`residuals` reads ``posed.vertices``."""
+        """Whether :meth:`residuals` reads ``posed.vertices`` (the whole mesh)."""
+        ...
+
+    @property
+    def surface_vertices(self) -> torch.Tensor | None:
+        """``(P,)`` long indices of the mesh vertices :meth:`residuals` reads as
+        ``posed.surface[name]`` (posed by a model of those vertices alone), or None."""
         ...
 
     def residuals(self, posed: PosedBodies) -> torch.Tensor:

@@ -4,7 +4,8 @@ The cost is ``½ Σ_t Σ_g ρ_t(|r_tg|²) + ½ |r_prior|²``: each evidence term
 (:class:`~hkpd.conditioning.EvidenceTerm`, robustified by its own Cauchy scale or not) reads
 the posed bodies, the prior block (:class:`~hkpd.conditioning.fit_priors.FitPriors`) the
 unknowns. The body is posed once per evaluation for all terms, with its vertices only when a
-term asks for them.
+term asks for them, and the few surface vertices a term names (``surface_vertices``) by a model
+of those vertices alone.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from hkpd.conditioning.config import EvidenceConfig
 from hkpd.conditioning.evidence_term import EvidenceTerm, PosedBodies
 from hkpd.conditioning.fit_priors import FitPriors
 from hkpd.conditioning.fit_state import NUM_BODY_JOINTS, FitState
+from hkpd.conditioning.surface_points import vertex_subset_model
 from hkpd.distributions import BodyDistribution
 
 
@@ -76,6 +78,11 @@ class FitObjective:
         self.terms = tuple(terms)
         self.prior = FitPriors(priors.to(torch.float64), config)
         self.needs_vertices = any(term.needs_vertices for term in self.terms)
+        self.surface_models = {
+            term.name: vertex_subset_model(body, term.surface_vertices)
+            for term in self.terms
+            if term.surface_vertices is not None
+        }
 
     def pose(self, state: FitState) -> PosedBodies:
         """The bodies of ``state`` (leading dims ``(N, B)``), vertices only when needed."""
@@ -93,12 +100,17 @@ class FitObjective:
             vertices = output.vertices.reshape(*lead, -1, 3)
         else:
             keypoints, joints = self.body.posed_keypoints(betas, body_pose, orient)
+        surface = {
+            name: model(betas, body_pose, orient).vertices.reshape(*lead, -1, 3)
+            for name, model in self.surface_models.items()
+        }
         return PosedBodies(
             keypoints=keypoints.reshape(*lead, -1, 3),
             joints=joints.reshape(*lead, -1, 3),
             vertices=vertices,
             camera=state.camera(),
             betas=state.betas,
+            surface=surface,
         )
 
     def __call__(self, state: FitState) -> Residuals:

@@ -9,8 +9,11 @@ terms (:class:`~hkpd.conditioning.EvidenceTerm`): the keypoints' :class:`Keypoin
 any ``extra_terms``; the Laplace step reads only ``H`` and the fitted state, so it counts every
 term's evidence without knowing the terms:
 
-- the global rotation and camera are *conditioned on* (fixed at the fit; samples vary pose and
-  shape only, as they do for the network's own distribution);
+- the global rotation and camera are fixed at the fit in the samples (they vary pose and shape
+  only, as they do for the network's own distribution); the pose and shape precisions either
+  condition on them (``EvidenceConfig.rigid_spread="conditional"``) or marginalise them, for
+  the shape Gaussian only (``"shape"``, the default: height may then trade off against the
+  camera's scale) or for the joints too (``"marginal"``), by a Schur complement;
 - each joint's matrix-Fisher has the fitted rotation as its mode and, as its curvature, the
   joint's precision given the other joints (``EvidenceConfig.joint_spread="conditional"``, the
   diagonal block of ``H``) or its marginal precision (``"marginal"``,
@@ -33,7 +36,7 @@ from hkpd.body import BodyModel
 from hkpd.conditioning.config import EvidenceConfig
 from hkpd.conditioning.evidence_term import EvidenceTerm
 from hkpd.conditioning.fit_objective import FitObjective
-from hkpd.conditioning.fit_state import NUM_BODY_JOINTS, POSE, SHAPE
+from hkpd.conditioning.fit_state import CAMERA, GLOBAL, NUM_BODY_JOINTS, POSE, SHAPE
 from hkpd.conditioning.keypoint_evidence import KeypointEvidence
 from hkpd.conditioning.keypoint_term import KeypointTerm
 from hkpd.conditioning.laplace import marginal_precisions, matrix_fisher_from_precision
@@ -102,21 +105,36 @@ def fit_evidence(
 
 
 def laplace_posterior(
-    result: SolverResult, start: int, spread: str = "conditional"
+    result: SolverResult,
+    start: int,
+    spread: str = "conditional",
+    rigid_spread: str = "conditional",
 ) -> BodyDistribution:
-    """The family posterior of one start from the fit's Hessian (see the module docstring)."""
+    """The family posterior of one start from the fit's Hessian (see the module docstring).
+
+    Args:
+        result: the fit.
+        start: which start's estimate and Hessian.
+        spread: ``EvidenceConfig.joint_spread``.
+        rigid_spread: ``EvidenceConfig.rigid_spread``: the global rotation and camera held
+            fixed (``"conditional"``), marginalised for the shape Gaussian only (``"shape"``),
+            or for the shape and the joints (``"marginal"``).
+    """
     hessian = result.hessian[start]
-    kept = torch.cat((torch.arange(POSE.start, POSE.stop), torch.arange(SHAPE.start, SHAPE.stop)))
-    conditional = hessian[kept][:, kept]  # global rotation and camera held fixed
+    given_rigid = pose_shape_precision(hessian, "conditional")
+    free_rigid = given_rigid if rigid_spread == "conditional" else None
+    if free_rigid is None:
+        free_rigid = pose_shape_precision(hessian, "marginal")
+    joints_from = free_rigid if rigid_spread == "marginal" else given_rigid
     if spread == "marginal":
-        joint_precision = marginal_precisions(conditional, NUM_BODY_JOINTS)
+        joint_precision = marginal_precisions(joints_from, NUM_BODY_JOINTS)
     else:
         spans = [slice(3 * joint, 3 * joint + 3) for joint in range(NUM_BODY_JOINTS)]
-        joint_precision = torch.stack([conditional[span, span] for span in spans])
+        joint_precision = torch.stack([joints_from[span, span] for span in spans])
     state = result.state
     body_pose = state.body_pose()[start]
     F = matrix_fisher_from_precision(body_pose, joint_precision)
-    shape_covariance = torch.linalg.inv(conditional)[POSE.stop :, POSE.stop :]
+    shape_covariance = torch.linalg.inv(free_rigid)[POSE.stop :, POSE.stop :]
     return BodyDistribution(
         F=F,
         shape_mean=state.betas[start],
@@ -124,6 +142,24 @@ def laplace_posterior(
         global_orient=state.global_orient()[start],
         camera=state.camera()[start],
     )
+
+
+def pose_shape_precision(hessian: torch.Tensor, rigid_spread: str) -> torch.Tensor:
+    """``(69 + K, 69 + K)`` precision of pose and shape from the fit's ``(85, 85)`` Hessian.
+
+    ``"conditional"``: the pose-and-shape block, the precision given the global rotation and
+    camera. Otherwise its Schur complement ``H_kk - H_kr H_rr⁻¹ H_rk`` (``r`` the global
+    rotation and camera), the precision with them marginalised (the inverse of the
+    pose-and-shape block of ``H⁻¹``).
+    """
+    kept = torch.cat((torch.arange(POSE.start, POSE.stop), torch.arange(SHAPE.start, SHAPE.stop)))
+    block = hessian[kept][:, kept]
+    if rigid_spread == "conditional":
+        return block
+    rigid = torch.arange(GLOBAL.start, CAMERA.stop)
+    coupling = hessian[kept][:, rigid]
+    schur = block - coupling @ torch.linalg.solve(hessian[rigid][:, rigid], coupling.T)
+    return 0.5 * (schur + schur.T)
 
 
 def condition_on_keypoints(
@@ -169,7 +205,7 @@ def condition_on_keypoints(
         costs = torch.where(torch.isfinite(result.cost), result.cost, torch.inf)
         best = int(costs.argmin())
         conditioned = (
-            laplace_posterior(result, best, config.joint_spread)
+            laplace_posterior(result, best, config.joint_spread, config.rigid_spread)
             if torch.isfinite(costs[best])
             else None
         )

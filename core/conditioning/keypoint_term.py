@@ -29,6 +29,7 @@ class KeypointTerm:
     name = "keypoints"
     residual_shape = (NUM_KEYPOINTS, 2)
     needs_vertices = False
+    surface_vertices = None
 
     def __init__(self, evidence: KeypointEvidence, config: EvidenceConfig) -> None:
         dtype = torch.float64
