@@ -129,6 +129,12 @@ def _add_reading_arguments(parser: argparse.ArgumentParser) -> None:
         "mirrored, keeping the reading whose body fits the shown keypoints better; the plain "
         "synthetic and occlusion rows always read the network once, as the paper does)",
     )
+    parser.add_argument(
+        "--silhouette-evidence",
+        action="store_true",
+        help="with --evidence and --coco: also score the evidence posterior conditioned on the "
+        "detector's person mask too (Predictor(silhouette_evidence=True), docs/shape.md)",
+    )
 
 
 def _add_photo_arguments(parser: argparse.ArgumentParser) -> None:
@@ -438,10 +444,15 @@ def _photo_rows(
         else:
             from hkpd.evaluation.photo_occlusion import photo_occlusion_response
 
-            for evidence, label in ((False, "network only"), (True, "2D evidence")):
+            kinds = [(False, False, "network only"), (True, False, "2D evidence")]
+            if arguments.silhouette_evidence:
+                kinds.append((True, True, "2D evidence + person mask"))
+            for evidence, silhouette, label in kinds:
                 name = f"{checkpoint} ({label}{read})"
+                predictor.silhouette_evidence = silhouette
                 rows[name] = evaluate_photos(predictor, people, evidence=evidence)
                 occlusion_rows[name] = photo_occlusion_response(predictor, people, evidence)
+            predictor.silhouette_evidence = False
         for degrees, turned_people in turned.items():
             for evidence in (False, True) if arguments.evidence else (False,):
                 label = "2D evidence" if evidence else "network only, read upright"

@@ -31,7 +31,15 @@ from PIL import Image
 
 from hkpd.assets import shipped_file
 from hkpd.body import BodyModel
-from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
+from hkpd.conditioning import (
+    EvidenceConfig,
+    EvidenceTerm,
+    KeypointEvidence,
+    SilhouetteEvidence,
+    SilhouetteTerm,
+    SurfaceSamples,
+    condition_on_keypoints,
+)
 from hkpd.devices import resolve_device
 from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
@@ -71,6 +79,12 @@ class Predictor:
             as it is and mirrored, keeping the reading whose most likely body fits the shown
             keypoints more closely (``mirror``; False reads each once), and from which lean an
             upright copy is read too (``upright_start_degrees``).
+        silhouette_evidence: also condition on the detector's person mask
+            (:class:`hkpd.conditioning.SilhouetteTerm`, ``docs/shape.md``): the body's outline
+            should match the mask's where the photo shows it. Off by default until it is
+            measured on photos; a detector without segmentation, or a photo without a mask,
+            falls back to the keypoints alone (``posterior.evidence_fit.terms`` says which
+            evidence the fit used).
 
     Attributes:
         network: the distribution network (eval mode, on ``device``).
@@ -88,6 +102,7 @@ class Predictor:
         detector: KeypointDetector | None = None,
         evidence_config: EvidenceConfig | None = None,
         reading_config: ReadingConfig | None = None,
+        silhouette_evidence: bool = False,
     ) -> None:
         self.device = torch.device(device)
         network = network.to(self.device).eval()
@@ -98,8 +113,10 @@ class Predictor:
         self.crop_size = int(network.config.image_size)
         self.image_proxy = str(network.config.image_proxy)
         self.evidence_config = evidence_config or EvidenceConfig()
+        self.silhouette_evidence = silhouette_evidence
         self._lock = threading.Lock()
         self._body64: BodyModel | None = None
+        self._surface: SurfaceSamples | None = None
 
     @classmethod
     def from_pretrained(
@@ -108,6 +125,7 @@ class Predictor:
         device: str = "auto",
         reading_config: ReadingConfig | None = None,
         evidence_config: EvidenceConfig | None = None,
+        silhouette_evidence: bool = False,
     ) -> Predictor:
         """Load a checkpoint (default: the shipped pretrained model).
 
@@ -117,6 +135,7 @@ class Predictor:
             reading_config: as for the constructor.
             evidence_config: None takes the evidence settings stored with the weights
                 (``hkpd-tune-evidence --write-to``; the defaults when none are stored).
+            silhouette_evidence: as for the constructor.
         """
         resolved = resolve_device(device)
         source = Path(path) if path else shipped_model_path()
@@ -124,7 +143,11 @@ class Predictor:
         if evidence_config is None:
             evidence_config = EvidenceConfig.from_dict(stored_evidence_config(payload), str(source))
         return cls(
-            network, resolved, evidence_config=evidence_config, reading_config=reading_config
+            network,
+            resolved,
+            evidence_config=evidence_config,
+            reading_config=reading_config,
+            silhouette_evidence=silhouette_evidence,
         )
 
     @torch.no_grad()
@@ -191,7 +214,11 @@ class Predictor:
                 self.crop_size,
             )
             fit = condition_on_keypoints(
-                self._float64_body(), starts, keypoint_evidence, self.evidence_config
+                self._float64_body(),
+                starts,
+                keypoint_evidence,
+                self.evidence_config,
+                extra_terms=self._mask_terms(prepared),
             )
         if fit.conditioned is None:
             return replace(network_posterior, evidence_fit=fit)
@@ -238,6 +265,16 @@ class Predictor:
             network_input=prepared,
             evidence=torch.as_tensor(prepared.evidence),
         )
+
+    def _mask_terms(self, prepared: NetworkInput) -> list[EvidenceTerm]:
+        """The silhouette term of the photo's person mask, when asked for and the detector
+        gave a mask; else none (the fit then uses the keypoints alone)."""
+        if not self.silhouette_evidence or prepared.person_mask is None:
+            return []
+        if self._surface is None:
+            self._surface = SurfaceSamples.of(self._float64_body())
+        evidence = SilhouetteEvidence.from_arrays(prepared.person_mask, prepared.person_mask_known)
+        return [SilhouetteTerm(evidence, self._surface)]
 
     def _on_device(self, tensor: torch.Tensor) -> torch.Tensor:
         """``tensor`` as the posterior holds it: float32 on the predictor's device."""
