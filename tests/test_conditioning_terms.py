@@ -214,8 +214,8 @@ def test_height_trades_off_against_the_camera_scale_only_when_it_is_marginalised
     assert free.conditioned.shape_std[0] > 1.5 * fixed.conditioned.shape_std[0]
     assert (free.conditioned.shape_std >= fixed.conditioned.shape_std - 1e-9).all()
     assert not torch.allclose(free.conditioned.F, fixed.conditioned.F)
-    # "shape" (the default): the shape Gaussian marginalised, the joints exactly as before
-    default = condition_on_keypoints(body64, starts, evidence, EvidenceConfig())
-    assert EvidenceConfig().rigid_spread == "shape"
-    assert torch.equal(default.conditioned.F, fixed.conditioned.F)
-    torch.testing.assert_close(default.conditioned.shape_std, free.conditioned.shape_std)
+    # "shape": the shape Gaussian marginalised, the joints exactly as before
+    shape = condition_on_keypoints(body64, starts, evidence, EvidenceConfig(rigid_spread="shape"))
+    assert EvidenceConfig().rigid_spread == "conditional"
+    assert torch.equal(shape.conditioned.F, fixed.conditioned.F)
+    torch.testing.assert_close(shape.conditioned.shape_std, free.conditioned.shape_std)

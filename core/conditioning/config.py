@@ -49,6 +49,9 @@ class EvidenceConfig:
             off against the camera's scale), ``"shape"`` marginalises them for the shape
             Gaussian (the Schur complement of their block: the shape's spread as if they were
             unknown; the joints as with ``"conditional"``), ``"marginal"`` for the joints' too.
+            The default stays ``"conditional"``: ``"shape"`` makes β₀'s spread honest (z² 3.5 ->
+            0.6) but its height spread reaches every vertex and dilutes what hiding a limb does
+            (synthetic covered-limb ratio 1.74 -> 1.49, photos 1.89 -> 1.88; ``docs/shape.md``).
     """
 
     prior_weight: float = 0.5
@@ -60,7 +63,7 @@ class EvidenceConfig:
     max_iterations: int = 30
     tolerance: float = 1e-6
     joint_spread: str = "conditional"
-    rigid_spread: str = "shape"
+    rigid_spread: str = "conditional"
 
     def __post_init__(self) -> None:
         positive = {
