@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import torch
 
@@ -23,8 +24,15 @@ from hkpd.conditioning import EvidenceConfig, EvidenceTerm
 from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.evidence_synthetic import condition_batch
 from hkpd.evaluation.shape_metrics import ShapeScores, shape_scores
-from hkpd.evaluation.test_set import TEST_BATCH_SIZE, TEST_SET_SEED
+from hkpd.evaluation.test_set import (
+    TEST_BATCH_SIZE,
+    TEST_SET_SEED,
+    network_and_generator,
+    stored_evidence_settings,
+)
 from hkpd.prediction.predictor import float64_body
+from hkpd.prediction.readings import ReadingConfig
+from hkpd.prediction.readings.proxy_reader import ProxyReader
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
 from hkpd.synthesis.generator import RenderedBatch, SyntheticDataGenerator, batch_seed
 from hkpd.synthesis.mask_noise import MaskNoise, detector_like_masks
@@ -155,3 +163,32 @@ def evaluate_shape_batches(
         name: shape_scores(body64, torch.cat(means), torch.cat(records.stds[name]), truth)
         for name, means in records.means.items()
     }
+
+
+def evaluate_shape_synthetic(
+    checkpoint: Path,
+    poses: Path | None,
+    count: int,
+    device: torch.device | str,
+    evidence: bool,
+    mirror_reading: bool = True,
+    mask_noise: MaskNoise | None = None,
+    extra_terms_for: ExtraTermsFor = no_extra_terms,
+) -> dict[str, ShapeScores]:
+    """:func:`evaluate_shape_batches` of ``checkpoint`` on the fixed synthetic test set
+    (``count`` examples of the pose bank's test split, procedural poses without one), the
+    network reading each proxy as it is and, with ``mirror_reading``, mirrored too (as the
+    predictor and the ``--evidence`` rows read), with the checkpoint's stored evidence settings."""
+    network, generator = network_and_generator(checkpoint, poses, device)
+    reader = ProxyReader(
+        network, ReadingConfig(mirror=mirror_reading), upright=False, body=generator.body
+    )
+    return evaluate_shape_batches(
+        reader,
+        rendered_test_set(generator, count),
+        generator.body,
+        evidence,
+        config=stored_evidence_settings(checkpoint),
+        mask_noise=mask_noise,
+        extra_terms_for=extra_terms_for,
+    )
