@@ -72,6 +72,8 @@ def test_shape_scores_of_the_truth_are_zero_and_the_mean_body_is_not() -> None:
     assert scores.mean_body_pve_t_sc_mm > 3.0
     average = shape_scores(body, torch.zeros_like(true), torch.ones_like(true), true)
     assert average.pve_t_sc_mm == pytest.approx(scores.mean_body_pve_t_sc_mm)
+    assert average.height_error_mm == pytest.approx(scores.mean_body_height_error_mm)
+    assert scores.mean_body_height_error_mm > 10.0
     # β₀ is mostly height: +1 in β₀ changes the T-pose's height by several centimetres.
     taller = body_height(body.tpose(torch.eye(10, dtype=torch.float64)[:1]))
     assert abs(float(taller - body_height(body.tpose(torch.zeros(1, 10).double())))) > 0.03

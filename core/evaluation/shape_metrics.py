@@ -74,6 +74,7 @@ class ShapeScores:
         pve_t_sc_mm: PVE-T-SC of the shape mean, millimetres.
         mean_body_pve_t_sc_mm: PVE-T-SC of the mean body (all coefficients 0), millimetres.
         height_error_mm: mean absolute height error of the shape mean, millimetres.
+        mean_body_height_error_mm: the same of the mean body, millimetres.
         examples: how many examples were scored.
     """
 
@@ -83,6 +84,7 @@ class ShapeScores:
     pve_t_sc_mm: float
     mean_body_pve_t_sc_mm: float
     height_error_mm: float
+    mean_body_height_error_mm: float
     examples: int
 
     def as_dict(self) -> dict[str, list[float] | float | int]:
@@ -94,6 +96,7 @@ class ShapeScores:
             "mean_body_pve_t_sc_mm": self.mean_body_pve_t_sc_mm,
             "height_error_mm": self.height_error_mm,
             "z2": self.z2,
+            "mean_body_height_error_mm": self.mean_body_height_error_mm,
             "examples": self.examples,
         }
 
@@ -114,7 +117,9 @@ def shape_scores(
     predicted, target = body.tpose(mean), body.tpose(true)
     average = body.tpose(torch.zeros_like(true))
     millimetres = MILLIMETRES_PER_METRE
-    height = (body_height(predicted) - body_height(target)).abs()
+    true_height = body_height(target)
+    height = (body_height(predicted) - true_height).abs()
+    average_height = (body_height(average) - true_height).abs()
     return ShapeScores(
         r2=[float(v) for v in r_squared(mean, true)],
         z2=[float(v) for v in z_squared(mean, std.to(mean), true)],
@@ -122,6 +127,7 @@ def shape_scores(
         pve_t_sc_mm=float(pve_t_sc(predicted, target).mean()) * millimetres,
         mean_body_pve_t_sc_mm=float(pve_t_sc(average, target).mean()) * millimetres,
         height_error_mm=float(height.mean()) * millimetres,
+        mean_body_height_error_mm=float(average_height.mean()) * millimetres,
         examples=int(true.shape[0]),
     )
 

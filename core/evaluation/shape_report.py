@@ -3,7 +3,7 @@
 ``shape.json`` holds, for each posterior evaluated on the synthetic test set (``"network"``,
 and ``"evidence"`` with ``--evidence``), :meth:`hkpd.evaluation.shape_metrics.ShapeScores.as_dict`
 (``r2`` and ``z2``: 10 floats each; ``pve_t_mm``, ``pve_t_sc_mm``, ``mean_body_pve_t_sc_mm``,
-``height_error_mm``; ``examples``); with ``--coco`` a ``"coco"`` key,
+``height_error_mm``, ``mean_body_height_error_mm``; ``examples``); with ``--coco`` a ``"coco"`` key,
 ``{split: {posterior: {"mode_iou", "average_shape_iou", "people"}, "detector_iou": float or
 null}}`` for each photo folder (``val2017``, ``train2017``) and ``"all"``; and ``"settings"``
 (the checkpoint, the example count, the mask noise).
@@ -35,6 +35,7 @@ def shape_summary_row(scores: ShapeScores) -> dict[str, float]:
         "PVE-T-SC (mm)": scores.pve_t_sc_mm,
         "mean body PVE-T-SC (mm)": scores.mean_body_pve_t_sc_mm,
         "height err. (mm)": scores.height_error_mm,
+        "mean body height err. (mm)": scores.mean_body_height_error_mm,
         "z² β₀": scores.z2[0],
         "z² β₁…β₉ min": min(rest_z2, default=math.nan),
         "z² β₁…β₉ max": max(rest_z2, default=math.nan),

@@ -28,8 +28,9 @@ The defaults are a conservative first guess, to be replaced by the errors measur
 against coco_mini's COCO masks (``docs/shape.md``): BlazePose reached IoU 0.97 against a
 hand-drawn mask on one photo, and COCO's polygons are coarse by a pixel or two at a 256 crop, so
 the boundary moves by about 1.5 px, the mask is about 1.5 px wider (clothing), a thin part is
-lost in a third of the crops, one crop in five gets a spurious blob. On the synthetic test set
-these settings give a mask at IoU about 0.85-0.9 with the exact silhouette.
+lost in a third of the crops, one crop in five gets a spurious blob. On the first 100 examples
+of the synthetic test set these settings give masks at mean IoU 0.86 (10th percentile 0.79)
+with the exact silhouette (known pixels only), 1.11 times its area.
 """
 
 from __future__ import annotations
