@@ -22,7 +22,9 @@ from hkpd.evaluation.coco_silhouettes import (
     mode_silhouette,
     with_average_shape,
 )
+from hkpd.evaluation.shape_eval import MaskedExample, evaluate_shape_batches, rendered_test_set
 from hkpd.evaluation.shape_metrics import body_height, r_squared, shape_scores, z_squared
+from hkpd.evaluation.test_set import network_and_generator
 from hkpd.network import DistributionNetwork
 from hkpd.network.checkpoint import save_checkpoint
 from hkpd.network.config import NetworkConfig
@@ -241,3 +243,45 @@ def test_eval_shape_writes_shape_json_beside_the_report(tmp_path, capsys) -> Non
     assert eval_main([*arguments[:-2], "--shape"]) == 2
     assert "give --out" in capsys.readouterr().err
     assert eval_main([str(checkpoint), str(checkpoint), "--shape", "--out", str(report)]) == 2
+
+
+class _ShapePull:
+    """A toy evidence term: "shape coefficient 1 is 3 ± 0.05" (an over-sure silhouette)."""
+
+    name = "shape_pull"
+    residual_shape = (1, 1)
+    robust_scale = None
+    needs_vertices = False
+
+    def residuals(self, posed):
+        return ((posed.betas[..., 1] - 3.0) / 0.05)[..., None, None]
+
+
+def test_extra_terms_for_gets_each_examples_mask_and_its_terms_reach_the_fit(tmp_path) -> None:
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    torch.manual_seed(0)
+    checkpoint = save_checkpoint(
+        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    network, generator = network_and_generator(checkpoint, None, "cpu")
+    seen: list[MaskedExample] = []
+
+    def pull(example: MaskedExample) -> list:
+        seen.append(example)
+        return [_ShapePull()]
+
+    batches = list(rendered_test_set(generator, 4))
+    plain = evaluate_shape_batches(network.eval(), batches, generator.body, evidence=True)
+    pulled = evaluate_shape_batches(
+        network.eval(), batches, generator.body, evidence=True, extra_terms_for=pull
+    )
+    assert len(seen) == 4 and all(e.probability.shape == (64, 64) for e in seen)
+    assert all(e.known.dtype == torch.bool and e.crop_size == 64 for e in seen)
+    assert all(
+        float(e.probability.min()) >= 0.0 and float(e.probability.max()) <= 1.0 for e in seen
+    )
+    assert all(bool(e.silhouette.any()) for e in seen)  # the body is in every crop
+    # The network's posterior does not see the terms; the evidence posterior is pulled to 3.
+    assert pulled["network"].z2 == plain["network"].z2
+    assert pulled["evidence"].z2[1] > 10 * plain["evidence"].z2[1]
+    assert pulled["evidence"].z2[0] == pytest.approx(plain["evidence"].z2[0], rel=0.5)
