@@ -8,6 +8,14 @@ Examples::
     hkpd-eval runs/a/last.pt --poses poses.npz --concentration-scale 0.5 1 2   # calibration
     hkpd-eval runs/a/last.pt --poses poses.npz --coco coco_mini --evidence     # + 2D evidence
     hkpd-eval runs/a/last.pt --poses poses.npz --no-synthetic --multi-view-shape 100  # 5 photos
+    hkpd-eval model.pt --poses poses.npz --shape --evidence --coco coco_mini --out run/report.md
+
+With ``--shape`` (one checkpoint, ``--out`` required) it also scores how well the shape is read
+(``docs/shape_eval.md``): on the synthetic test set fed detector-like keypoints and masks, R²
+and z² of every shape coefficient, PVE-T, PVE-T-SC (and the mean body's) and the height error;
+with ``--coco`` the silhouette IoU of the mode, of the average shape and of BlazePose's mask
+against the COCO masks. The numbers go into the report and into ``shape.json`` in the report's
+folder (``--out run/report.md`` writes ``run/shape.json``).
 
 With ``--evidence`` every evaluation also scores the keypoint-evidence posterior next to the
 network's own (``docs/evidence.md``): on the synthetic test set the evidence is the exact
@@ -24,9 +32,12 @@ to ``--out``.
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
 import sys
 import tempfile
+from dataclasses import asdict
 from pathlib import Path
 
 import torch
@@ -57,6 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_synthetic_arguments(parser)
     _add_reading_arguments(parser)
     _add_photo_arguments(parser)
+    _add_shape_arguments(parser)
     parser.add_argument("--device", default="auto")
     parser.add_argument("--out", type=Path, help="also write the markdown report here")
     parser.add_argument(
@@ -165,6 +177,16 @@ def _add_photo_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_shape_arguments(parser: argparse.ArgumentParser) -> None:
+    """The shape evaluation's arguments."""
+    parser.add_argument(
+        "--shape",
+        action="store_true",
+        help="also score the shape read (R², z², PVE-T-SC, height; with --coco the silhouette "
+        "IoU against the COCO masks) and write shape.json beside --out (one checkpoint)",
+    )
+
+
 def evaluate_synthetic(
     checkpoint: Path,
     poses: Path | None,
@@ -245,15 +267,19 @@ def main(argv: list[str] | None = None) -> int:
                 "--concentration-scale applies to the synthetic and occlusion evaluations: "
                 "evaluate --coco in a separate run without it"
             )
+        if arguments.shape:
+            _check_shape_arguments(arguments)
     except (FileNotFoundError, ValueError) as error:
         print(f"hkpd-eval: error: {error}", file=sys.stderr)
         return 2
     try:
         with torch.no_grad():
-            text = _evaluate(arguments, device)
+            text, shape = _evaluate(arguments, device)
         print(text)
         if arguments.out:
             _write_atomically(arguments.out, text)
+        if shape is not None:
+            _write_atomically(shape_json_path(arguments.out), shape_json_text(shape))
     except (OSError, ValueError) as error:  # CheckpointError is a ValueError
         print(f"hkpd-eval: error: {error}", file=sys.stderr)
         return 2
@@ -282,9 +308,107 @@ def _write_atomically(path: Path, text: str) -> None:
         raise
 
 
-def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
-    """Run the requested evaluations and return the markdown report."""
+def _check_shape_arguments(arguments: argparse.Namespace) -> None:
+    """``--shape`` needs ``--out`` (for ``shape.json``), one checkpoint and F as trained."""
+    if arguments.out is None:
+        raise ValueError("--shape writes shape.json beside the report: give --out REPORT.md")
+    if len(arguments.checkpoints) != 1:
+        raise ValueError("--shape scores one checkpoint per run (shape.json holds one model)")
+    if arguments.concentration_scale != [1.0]:
+        raise ValueError("--shape and --concentration-scale: use one of them per run")
+    if arguments.no_synthetic and arguments.coco is None:
+        raise ValueError("--shape with --no-synthetic needs --coco (nothing to score)")
+    if arguments.out.name == shape_json_path(arguments.out).name:
+        raise ValueError("--shape writes shape.json beside --out: name the report otherwise")
+    _check_writable("--shape", shape_json_path(arguments.out))
+
+
+def shape_json_path(report: Path) -> Path:
+    """Where ``--shape`` writes its record: ``shape.json`` in the report's folder."""
+    return report.with_name("shape.json")
+
+
+def shape_json_text(record: dict) -> str:
+    """``record`` as JSON, NaN (no finite value) written as null."""
+
+    def clean(value):
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        if isinstance(value, dict):
+            return {key: clean(item) for key, item in value.items()}
+        if isinstance(value, list):
+            return [clean(item) for item in value]
+        return value
+
+    return json.dumps(clean(record), indent=2) + "\n"
+
+
+def _shape_evaluation(arguments: argparse.Namespace, device: torch.device) -> tuple[str, dict]:
+    """The ``--shape`` tables and ``shape.json`` record (:mod:`hkpd.evaluation.shape_eval`,
+    :mod:`hkpd.evaluation.coco_silhouettes`)."""
+    from hkpd.evaluation import shape_report
+    from hkpd.evaluation.shape_eval import evaluate_shape_synthetic
+    from hkpd.synthesis.mask_noise import MaskNoise
+
+    checkpoint, mask_noise = arguments.checkpoints[0], MaskNoise()
+    mirror, read = _mirror_reading(arguments)
+    record: dict = {}
+    parts = []
+    if not arguments.no_synthetic:
+        scores = evaluate_shape_synthetic(
+            checkpoint, arguments.poses, arguments.count, device, arguments.evidence,
+            mirror_reading=mirror, mask_noise=mask_noise,
+        )  # fmt: skip
+        record |= {name: score.as_dict() for name, score in scores.items()}
+        source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
+        parts.append(shape_report.shape_markdown(
+            scores, f"Shape read on the synthetic test set: {checkpoint}, {arguments.count} "
+            f"examples, {source}, detector-like keypoints and masks{read}",
+        ))  # fmt: skip
+    if arguments.coco is not None:
+        record["coco"] = _coco_silhouette_record(arguments, device)
+        parts.append(shape_report.coco_markdown(
+            record["coco"], f"Silhouette IoU against the COCO masks: {checkpoint}, "
+            f"{arguments.coco}{read}",
+        ))  # fmt: skip
+    record["settings"] = {
+        "checkpoint": str(checkpoint), "count": arguments.count,
+        "poses": None if arguments.poses is None else str(arguments.poses),
+        "mirror_reading": mirror, "mask_noise": asdict(mask_noise),
+    }  # fmt: skip
+    return "\n".join(parts), record
+
+
+def _coco_silhouette_record(arguments: argparse.Namespace, device: torch.device) -> dict:
+    """:func:`hkpd.evaluation.coco_silhouettes.coco_record` of the checkpoint's posteriors on
+    the ``--coco`` people (``--coco-split`` only, when given)."""
+    from hkpd.evaluation.coco_silhouettes import coco_record, evaluate_coco_silhouettes
+    from hkpd.evaluation.real_photos import load_coco_people
+    from hkpd.prediction.predictor import Predictor
+    from hkpd.prediction.readings import ReadingConfig
+
+    people = load_coco_people(arguments.coco)
+    if arguments.coco_split:
+        people = [p for p in people if p.image_path.parent.name == arguments.coco_split]
+    mirror, _ = _mirror_reading(arguments)
+    predictor = Predictor.from_pretrained(
+        arguments.checkpoints[0], device=str(device), reading_config=ReadingConfig(mirror=mirror)
+    )
+    try:
+        posteriors = {"network": False} | ({"evidence": True} if arguments.evidence else {})
+        by_posterior = {
+            name: evaluate_coco_silhouettes(predictor, people, evidence)
+            for name, evidence in posteriors.items()
+        }
+    finally:
+        predictor.close()
+    return coco_record(by_posterior)
+
+
+def _evaluate(arguments: argparse.Namespace, device: torch.device) -> tuple[str, dict | None]:
+    """Run the requested evaluations; the markdown report and (``--shape``) the shape record."""
     report = []
+    shape = None
     if not arguments.no_synthetic:
         report += _synthetic_report(arguments, device)
         if arguments.evidence:
@@ -295,7 +419,10 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> str:
         report.append(_occlusion_report(arguments, device))
     if arguments.multi_view_shape > 0:
         report.append(_multi_view_shape_report(arguments, device))
-    return "\n".join(report)
+    if arguments.shape:
+        text, shape = _shape_evaluation(arguments, device)
+        report.append(text)
+    return "\n".join(report), shape
 
 
 def _synthetic_report(arguments: argparse.Namespace, device: torch.device) -> list[str]:

@@ -9,12 +9,17 @@ posteriors identically. Examples whose fit falls back score the network's poster
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import torch
 
 from hkpd.body import BodyModel
-from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
+from hkpd.conditioning import (
+    EvidenceConfig,
+    EvidenceTerm,
+    KeypointEvidence,
+    condition_on_keypoints,
+)
 from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.metrics import MILLIMETRES_PER_METRE
 from hkpd.evaluation.prediction_metrics import evaluate_prediction
@@ -31,8 +36,18 @@ def condition_batch(
     crop_size: int,
     body64: BodyModel,
     config: EvidenceConfig,
+    extra_terms: Sequence[Sequence[EvidenceTerm]] | None = None,
 ) -> tuple[BodyDistribution, torch.Tensor]:
     """The evidence posterior of every example of a batch (network's where the fit fails).
+
+    Args:
+        output: the network's ``B`` predictions (priors and starts).
+        detected, reported: ``(B, 17, 2)`` keypoints in crop pixels and ``(B, 17)`` bool.
+        crop_size: the crops' side, pixels.
+        body64: float64 body model.
+        config: the evidence settings.
+        extra_terms: per example, the evidence beyond its keypoints (e.g. a silhouette term),
+            weighed in the same fit; None: keypoints only.
 
     Returns:
         The conditioned output (same dtype and device as ``output``) and ``(B,)`` bool, which
@@ -43,7 +58,8 @@ def condition_batch(
     for item in range(output.batch_size):
         start = output.rows(slice(item, item + 1)).detach().to("cpu")
         evidence = KeypointEvidence(detected[item].cpu(), reported[item].cpu(), crop_size)
-        fit = condition_on_keypoints(body64, start, evidence, config)
+        extra = () if extra_terms is None else extra_terms[item]
+        fit = condition_on_keypoints(body64, start, evidence, config, extra_terms=extra)
         if fit.conditioned is None:
             continue
         succeeded[item] = True

@@ -110,6 +110,8 @@ class RenderedBatch:
         part_map: ``(B, S, S)`` long body part per pixel (-1 background), before erasing.
         input_keypoints: ``(B, 17, 2)`` the keypoints drawn into the heatmaps (augmented).
         input_present: ``(B, 17)`` bool, which of them were drawn.
+        occluded: ``(B, S, S)`` bool, pixels hidden by the occlusion augmentations (erased
+            parts, boxes, half-image blanking).
     """
 
     batch: TrainingBatch
@@ -117,6 +119,7 @@ class RenderedBatch:
     part_map: torch.Tensor
     input_keypoints: torch.Tensor
     input_present: torch.Tensor
+    occluded: torch.Tensor
 
 
 @dataclass(frozen=True)
@@ -204,10 +207,11 @@ class SyntheticDataGenerator:
                 other draw, the drawn betas included, is made as without it, so poses, cameras,
                 clothing and augmentations are those of ``seed`` either way.
         """
-        packed, images, part_map = self._make(count, seed, betas)
+        packed, images, part_map, occluded = self._make(count, seed, betas)
         return RenderedBatch(
-            packed.unpack(), images, part_map, packed.input_keypoints, packed.input_present
-        )
+            packed.unpack(), images, part_map, packed.input_keypoints, packed.input_present,
+            occluded,
+        )  # fmt: skip
 
     def generate_packed(
         self, count: int, seed: int, betas: torch.Tensor | None = None
@@ -229,9 +233,10 @@ class SyntheticDataGenerator:
 
     def _make(
         self, count: int, seed: int, fixed_betas: torch.Tensor | None = None
-    ) -> tuple[PackedBatch, np.ndarray, torch.Tensor]:
-        """The packed batch, its ``(B, S, S, 3)`` uint8 images and ``(B, S, S)`` part map
-        (with ``fixed_betas`` instead of the drawn shapes when given)."""
+    ) -> tuple[PackedBatch, np.ndarray, torch.Tensor, torch.Tensor]:
+        """The packed batch, its ``(B, S, S, 3)`` uint8 images, ``(B, S, S)`` part map and
+        ``(B, S, S)`` occluded pixels (with ``fixed_betas`` instead of the drawn shapes when
+        given)."""
         generator = torch.Generator().manual_seed(seed)
         config, augment = self.config, self.config.augmentation
         scene = self._draw_scene(count, generator, fixed_betas)
@@ -268,7 +273,7 @@ class SyntheticDataGenerator:
             translation=scene.translation,
             focal_px=camera.focal,
         )
-        return packed, images, part_map
+        return packed, images, part_map, occluded
 
     def _draw_scene(
         self, count: int, generator: torch.Generator, fixed_betas: torch.Tensor | None
