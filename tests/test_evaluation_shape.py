@@ -285,3 +285,20 @@ def test_extra_terms_for_gets_each_examples_mask_and_its_terms_reach_the_fit(tmp
     assert pulled["network"].z2 == plain["network"].z2
     assert pulled["evidence"].z2[1] > 10 * plain["evidence"].z2[1]
     assert pulled["evidence"].z2[0] == pytest.approx(plain["evidence"].z2[0], rel=0.5)
+
+
+def test_eval_shape_scores_the_mask_as_evidence_when_asked(tmp_path) -> None:
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    torch.manual_seed(0)
+    checkpoint = save_checkpoint(
+        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    report = tmp_path / "report.md"
+    arguments = [str(checkpoint), "--count", "3", "--samples", "2", "--out", str(report)]
+    assert eval_main([*arguments, "--shape", "--evidence", "--silhouette-evidence"]) == 0
+    record = json.loads((tmp_path / "shape.json").read_text())
+    assert set(record["evidence_silhouette"]) >= SHAPE_KEYS
+    assert record["evidence_silhouette"]["examples"] == 3
+    # the mask moved the fit: not the keypoint-only evidence posterior's numbers
+    assert record["evidence_silhouette"]["pve_t_sc_mm"] != record["evidence"]["pve_t_sc_mm"]
+    assert "evidence_silhouette" in report.read_text()

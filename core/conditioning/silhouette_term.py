@@ -22,7 +22,7 @@ The term is asymmetric (``σ_out < σ_in``) because clothing and hair make the m
 the body: the body leaving the mask is strong evidence, the mask reaching beyond the body weak.
 Each group is robustified by the Cauchy loss at ``robust_scale`` sigmas (another person, a
 bag). The maths and the assumptions (tight clothing, one person) are in
-``docs/shape_silhouette.md``.
+``docs/shape.md``.
 """
 
 from __future__ import annotations
@@ -83,12 +83,12 @@ class SilhouetteEvidence:
 
 @dataclass(frozen=True)
 class SilhouetteConfig:
-    """Settings of the silhouette term (``docs/shape_silhouette.md`` says how they were chosen).
+    """Settings of the silhouette term (``docs/shape.md`` says how they were chosen).
 
     Attributes:
         outside_sigma: a body point outside the mask, noise of its distance to the mask, as a
             fraction of the crop side (0.02 is 5 px in a 256 crop). The defaults were chosen
-            on synthetic validation data with detector-like masks (``docs/shape_silhouette.md``);
+            on synthetic validation data with detector-like masks (``docs/shape.md``);
             an exact mask (a rendering) earns about half these sigmas and no margin.
         inside_sigma: a point of the body's outline inside the mask, noise of its distance to
             the mask's boundary, same units (larger: clothing and hair make the mask larger

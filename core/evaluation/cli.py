@@ -11,7 +11,7 @@ Examples::
     hkpd-eval model.pt --poses poses.npz --shape --evidence --coco coco_mini --out run/report.md
 
 With ``--shape`` (one checkpoint, ``--out`` required) it also scores how well the shape is read
-(``docs/shape_eval.md``): on the synthetic test set fed detector-like keypoints and masks, R²
+(``docs/shape.md``): on the synthetic test set fed detector-like keypoints and masks, R²
 and z² of every shape coefficient, PVE-T, PVE-T-SC (and the mean body's) and the height error;
 with ``--coco`` the silhouette IoU of the mode, of the average shape and of BlazePose's mask
 against the COCO masks. The numbers go into the report and into ``shape.json`` in the report's
@@ -359,6 +359,8 @@ def _shape_evaluation(arguments: argparse.Namespace, device: torch.device) -> tu
             checkpoint, arguments.poses, arguments.count, device, arguments.evidence,
             mirror_reading=mirror, mask_noise=mask_noise,
         )  # fmt: skip
+        if arguments.evidence and arguments.silhouette_evidence:
+            scores["evidence_silhouette"] = _silhouette_shape_scores(arguments, device, mask_noise)
         record |= {name: score.as_dict() for name, score in scores.items()}
         source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
         parts.append(shape_report.shape_markdown(
@@ -377,6 +379,19 @@ def _shape_evaluation(arguments: argparse.Namespace, device: torch.device) -> tu
         "mirror_reading": mirror, "mask_noise": asdict(mask_noise),
     }  # fmt: skip
     return "\n".join(parts), record
+
+
+def _silhouette_shape_scores(arguments: argparse.Namespace, device: torch.device, mask_noise):
+    """The evidence posterior's shape scores with the detector-like mask as evidence too."""
+    from hkpd.body import BodyModel
+    from hkpd.evaluation.shape_eval import evaluate_shape_synthetic, silhouette_terms_for
+
+    mirror, _ = _mirror_reading(arguments)
+    return evaluate_shape_synthetic(
+        arguments.checkpoints[0], arguments.poses, arguments.count, device, True,
+        mirror_reading=mirror, mask_noise=mask_noise,
+        extra_terms_for=silhouette_terms_for(BodyModel()),
+    )["evidence"]  # fmt: skip
 
 
 def _coco_silhouette_record(arguments: argparse.Namespace, device: torch.device) -> dict:
@@ -400,6 +415,9 @@ def _coco_silhouette_record(arguments: argparse.Namespace, device: torch.device)
             name: evaluate_coco_silhouettes(predictor, people, evidence)
             for name, evidence in posteriors.items()
         }
+        if arguments.evidence and arguments.silhouette_evidence:
+            predictor.silhouette_evidence = True
+            by_posterior["evidence_silhouette"] = evaluate_coco_silhouettes(predictor, people, True)
     finally:
         predictor.close()
     return coco_record(by_posterior)

@@ -20,7 +20,14 @@ from pathlib import Path
 import torch
 
 from hkpd.body import BodyModel
-from hkpd.conditioning import EvidenceConfig, EvidenceTerm
+from hkpd.conditioning import (
+    EvidenceConfig,
+    EvidenceTerm,
+    SilhouetteConfig,
+    SilhouetteEvidence,
+    SilhouetteTerm,
+    SurfaceSamples,
+)
 from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.evidence_synthetic import condition_batch
 from hkpd.evaluation.shape_metrics import ShapeScores, shape_scores
@@ -66,6 +73,23 @@ ExtraTermsFor = Callable[[MaskedExample], list[EvidenceTerm]]
 def no_extra_terms(example: MaskedExample) -> list[EvidenceTerm]:
     """The default :data:`ExtraTermsFor`: keypoints only."""
     return []
+
+
+def silhouette_terms_for(body: BodyModel, config: SilhouetteConfig | None = None) -> ExtraTermsFor:
+    """An :data:`ExtraTermsFor` that conditions on each example's detector-like mask with the
+    predictor's :class:`hkpd.conditioning.SilhouetteTerm` (surface samples of ``body``, made
+    once)."""
+    surface = SurfaceSamples.of(body)
+
+    def terms(example: MaskedExample) -> list[EvidenceTerm]:
+        evidence = SilhouetteEvidence(
+            example.probability.detach().cpu().double(),
+            example.known.detach().cpu().bool(),
+            example.crop_size,
+        )
+        return [SilhouetteTerm(evidence, surface, config)]
+
+    return terms
 
 
 def rendered_test_set(

@@ -14,7 +14,7 @@ true)²/std²: β₀, and min/max over β₁…β₉), the mode's MPJPE-PA (mm) 
 
     .venv/bin/python docs/experiments/silhouette_term_validation.py --count 100
 
-Results and how the settings were chosen: ``docs/shape_silhouette.md``.
+Results and how the settings were chosen: ``docs/shape.md``.
 """
 
 from __future__ import annotations
