@@ -144,8 +144,9 @@ def _add_reading_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--silhouette-evidence",
         action="store_true",
-        help="with --evidence and --coco: also score the evidence posterior conditioned on the "
-        "detector's person mask too (Predictor(silhouette_evidence=True), docs/shape.md)",
+        help="with --evidence: also score the evidence posterior conditioned on the person mask "
+        "too (on --coco photos BlazePose's, Predictor(silhouette_evidence=True); with --shape "
+        "the synthetic detector-like masks; docs/shape.md)",
     )
 
 
