@@ -220,12 +220,17 @@ def test_coco_record_summarises_per_split_and_all() -> None:
 # --- hkpd-eval --shape -------------------------------------------------------------------------
 
 
-def test_eval_shape_writes_shape_json_beside_the_report(tmp_path, capsys) -> None:
+def _tiny_checkpoint(folder):
+    """An untrained 64-px network's checkpoint in ``folder``."""
     config = NetworkConfig(backbone_base_width=8, image_size=64)
     torch.manual_seed(0)
-    checkpoint = save_checkpoint(
-        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    return save_checkpoint(
+        folder / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
     )
+
+
+def test_eval_shape_writes_shape_json_beside_the_report(tmp_path, capsys) -> None:
+    checkpoint = _tiny_checkpoint(tmp_path)
     report = tmp_path / "report.md"
     arguments = [str(checkpoint), "--count", "4", "--samples", "2", "--out", str(report)]
     assert eval_main([*arguments, "--shape", "--evidence"]) == 0
@@ -258,11 +263,7 @@ class _ShapePull:
 
 
 def test_extra_terms_for_gets_each_examples_mask_and_its_terms_reach_the_fit(tmp_path) -> None:
-    config = NetworkConfig(backbone_base_width=8, image_size=64)
-    torch.manual_seed(0)
-    checkpoint = save_checkpoint(
-        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
-    )
+    checkpoint = _tiny_checkpoint(tmp_path)
     network, generator = network_and_generator(checkpoint, None, "cpu")
     seen: list[MaskedExample] = []
 
@@ -288,11 +289,7 @@ def test_extra_terms_for_gets_each_examples_mask_and_its_terms_reach_the_fit(tmp
 
 
 def test_eval_shape_scores_the_mask_as_evidence_when_asked(tmp_path) -> None:
-    config = NetworkConfig(backbone_base_width=8, image_size=64)
-    torch.manual_seed(0)
-    checkpoint = save_checkpoint(
-        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
-    )
+    checkpoint = _tiny_checkpoint(tmp_path)
     report = tmp_path / "report.md"
     arguments = [str(checkpoint), "--count", "3", "--samples", "2", "--out", str(report)]
     assert eval_main([*arguments, "--shape", "--evidence", "--silhouette-evidence"]) == 0
