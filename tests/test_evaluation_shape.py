@@ -257,6 +257,7 @@ class _ShapePull:
     residual_shape = (1, 1)
     robust_scale = None
     needs_vertices = False
+    surface_vertices = None
 
     def residuals(self, posed):
         return ((posed.betas[..., 1] - 3.0) / 0.05)[..., None, None]

@@ -75,10 +75,14 @@ def test_averaged_gradients_equal_one_process_with_the_doubled_batch(tmp_path) -
     alone = {mode: [gradients(network, network, b, mode) for b in batches] for mode in MODES}
     averaged = [(a + b) / 2 for a, b in zip(*alone["train"], strict=True)]
     assert len(found["eval"]) == len(doubled) == len(list(network.parameters()))
+    # batch statistics amplify float32 summation-order noise (thread counts differ between the
+    # workers and this process: 1.3e-4 of the largest gradient seen in CI), so "train" gets 1e-3;
+    # rank 0's own gradient is > 1e-2 away (below), so both bounds still tell the two apart
+    tolerance = {"eval": 1e-4, "train": 1e-3}
     for expected, mode in ((doubled, "eval"), (averaged, "train")):
         for got, want in zip(found[mode], expected, strict=True):
             scale = float(want.abs().max()) + 1e-12
-            assert float((got - want).abs().max()) <= 1e-4 * scale, mode
+            assert float((got - want).abs().max()) <= tolerance[mode] * scale, mode
     # not rank 0's own gradient: the other rank's batch counts
     worst = max(
         float((got - own).abs().max() / (own.abs().max() + 1e-12))
