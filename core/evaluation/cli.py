@@ -347,8 +347,9 @@ def shape_json_text(record: dict) -> str:
 def _shape_evaluation(arguments: argparse.Namespace, device: torch.device) -> tuple[str, dict]:
     """The ``--shape`` tables and ``shape.json`` record (:mod:`hkpd.evaluation.shape_eval`,
     :mod:`hkpd.evaluation.coco_silhouettes`)."""
+    from hkpd.body import BodyModel
     from hkpd.evaluation import shape_report
-    from hkpd.evaluation.shape_eval import evaluate_shape_synthetic
+    from hkpd.evaluation.shape_eval import evaluate_shape_synthetic, silhouette_terms_for
     from hkpd.synthesis.mask_noise import MaskNoise
 
     checkpoint, mask_noise = arguments.checkpoints[0], MaskNoise()
@@ -356,12 +357,15 @@ def _shape_evaluation(arguments: argparse.Namespace, device: torch.device) -> tu
     record: dict = {}
     parts = []
     if not arguments.no_synthetic:
+        more_evidence = (
+            {"evidence_silhouette": silhouette_terms_for(BodyModel())}
+            if arguments.evidence and arguments.silhouette_evidence
+            else None
+        )
         scores = evaluate_shape_synthetic(
             checkpoint, arguments.poses, arguments.count, device, arguments.evidence,
-            mirror_reading=mirror, mask_noise=mask_noise,
+            mirror_reading=mirror, mask_noise=mask_noise, more_evidence=more_evidence,
         )  # fmt: skip
-        if arguments.evidence and arguments.silhouette_evidence:
-            scores["evidence_silhouette"] = _silhouette_shape_scores(arguments, device, mask_noise)
         record |= {name: score.as_dict() for name, score in scores.items()}
         source = f"pose bank {arguments.poses} (test split)" if arguments.poses else "procedural"
         parts.append(shape_report.shape_markdown(
@@ -380,19 +384,6 @@ def _shape_evaluation(arguments: argparse.Namespace, device: torch.device) -> tu
         "mirror_reading": mirror, "mask_noise": asdict(mask_noise),
     }  # fmt: skip
     return "\n".join(parts), record
-
-
-def _silhouette_shape_scores(arguments: argparse.Namespace, device: torch.device, mask_noise):
-    """The evidence posterior's shape scores with the detector-like mask as evidence too."""
-    from hkpd.body import BodyModel
-    from hkpd.evaluation.shape_eval import evaluate_shape_synthetic, silhouette_terms_for
-
-    mirror, _ = _mirror_reading(arguments)
-    return evaluate_shape_synthetic(
-        arguments.checkpoints[0], arguments.poses, arguments.count, device, True,
-        mirror_reading=mirror, mask_noise=mask_noise,
-        extra_terms_for=silhouette_terms_for(BodyModel()),
-    )["evidence"]  # fmt: skip
 
 
 def _coco_silhouette_record(arguments: argparse.Namespace, device: torch.device) -> dict:

@@ -26,13 +26,11 @@ from tqdm import tqdm
 
 from hkpd.evaluation.real_photos import AnnotatedPerson
 from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
+from hkpd.prediction.detection.person_mask import MASK_THRESHOLD
 from hkpd.prediction.exports.fit_overlay import render_fit_overlay
 from hkpd.prediction.image_input import ImageInputError
 from hkpd.prediction.posterior import BodyPosterior, CropToImage
 from hkpd.prediction.predictor import Predictor
-
-MASK_THRESHOLD = 0.5
-"""A probability mask counts as the person where it is at least this."""
 
 
 def mask_iou(predicted: np.ndarray, target: np.ndarray) -> float:
@@ -103,7 +101,7 @@ def person_silhouettes(posterior: BodyPosterior, person: AnnotatedPerson) -> Per
     def iou(crop_mask: np.ndarray) -> float:
         return mask_iou(crop_mask_in_photo(crop_mask, posterior.crop, size), target)
 
-    detector_mask = getattr(posterior.network_input, "person_mask", None)
+    detector_mask = posterior.network_input.person_mask
     return PersonSilhouettes(
         split=person.image_path.parent.name,
         mode_iou=iou(mode_silhouette(posterior)),

@@ -13,7 +13,7 @@ keypoints only), so a silhouette term is plugged in without changing this module
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -142,6 +142,7 @@ def evaluate_shape_batches(
     mask_noise: MaskNoise | None = None,
     extra_terms_for: ExtraTermsFor = no_extra_terms,
     seed: int = 0,
+    more_evidence: Mapping[str, ExtraTermsFor] | None = None,
 ) -> dict[str, ShapeScores]:
     """Shape scores of the network's posterior (and with ``evidence`` the evidence posterior's).
 
@@ -154,11 +155,16 @@ def evaluate_shape_batches(
         keypoint_noise, mask_noise: the detector-like noise (defaults: their dataclasses').
         extra_terms_for: the terms beyond the keypoints for each example's mask.
         seed: seeds the keypoint noise (``seed``) and the mask noise (``seed + 1``).
+        more_evidence: with ``evidence``, further evidence posteriors by name, each with its
+            own terms beyond the keypoints, fitted to the same noisy keypoints and masks in
+            the same pass (e.g. ``{"evidence_silhouette": silhouette_terms_for(body)}``).
 
     Returns:
-        ``{"network": scores}`` and with ``evidence`` also ``"evidence"``; examples whose fit
-        fails score the network's posterior (as the ``--evidence`` rows do).
+        ``{"network": scores}`` and with ``evidence`` also ``"evidence"`` and every name of
+        ``more_evidence``; examples whose fit fails score the network's posterior (as the
+        ``--evidence`` rows do).
     """
+    posteriors = {"evidence": extra_terms_for, **(more_evidence or {})}
     config = config or EvidenceConfig()
     keypoint_noise, mask_noise = keypoint_noise or DetectorNoise(), mask_noise or MaskNoise()
     body64 = float64_body(body)
@@ -177,11 +183,12 @@ def evaluate_shape_batches(
             batch.keypoints2d, batch.visible, size, keypoint_noise, keypoint_generator
         )
         examples = masked_examples(rendered, mask_noise, mask_generator)
-        terms = [extra_terms_for(example) for example in examples]
-        conditioned, _ = condition_batch(
-            output, detected, reported, size, body64, config, extra_terms=terms
-        )
-        records.add("evidence", conditioned)
+        for name, terms_for in posteriors.items():
+            terms = [terms_for(example) for example in examples]
+            conditioned, _ = condition_batch(
+                output, detected, reported, size, body64, config, extra_terms=terms
+            )
+            records.add(name, conditioned)
     truth = torch.cat(records.truth)
     return {
         name: shape_scores(body64, torch.cat(means), torch.cat(records.stds[name]), truth)
@@ -198,6 +205,7 @@ def evaluate_shape_synthetic(
     mirror_reading: bool = True,
     mask_noise: MaskNoise | None = None,
     extra_terms_for: ExtraTermsFor = no_extra_terms,
+    more_evidence: Mapping[str, ExtraTermsFor] | None = None,
 ) -> dict[str, ShapeScores]:
     """:func:`evaluate_shape_batches` of ``checkpoint`` on the fixed synthetic test set
     (``count`` examples of the pose bank's test split, procedural poses without one), the
@@ -215,4 +223,5 @@ def evaluate_shape_synthetic(
         config=stored_evidence_settings(checkpoint),
         mask_noise=mask_noise,
         extra_terms_for=extra_terms_for,
+        more_evidence=more_evidence,
     )
