@@ -76,16 +76,19 @@ def perturbed(output: BodyDistribution, amount: float) -> BodyDistribution:
 
 def test_terms_are_finite_and_minimal_at_ground_truth(body, batch):
     truth = ground_truth_output(batch)
-    weights = LossWeights()
+    weights = LossWeights(shape_tpose_vertices=1000.0)
     at_truth = compute_losses(truth, batch, body, weights, num_samples=2)
     assert set(at_truth) == {*LOSS_TERMS, "total"}
     assert all(torch.isfinite(v) for v in at_truth.values())
     assert at_truth["joints2d_mode"] < 1e-9 and at_truth["joints3d_mode"] < 1e-9
+    assert at_truth["shape_tpose_vertices"] < 1e-12
     assert at_truth["global_rotation"] < 1e-9
     previous = None
     for amount in (0.1, 0.3):
         off = compute_losses(perturbed(truth, amount), batch, body, weights, num_samples=2)
-        for name in ("shape_nll", "pose_nll", "global_rotation", "joints2d_mode", "joints3d_mode"):
+        grown = ("shape_nll", "pose_nll", "global_rotation", "joints2d_mode", "joints3d_mode",
+                 "shape_tpose_vertices")  # fmt: skip
+        for name in grown:
             assert off[name] > at_truth[name], name
             if previous is not None:
                 assert off[name] > previous[name], f"{name} does not grow with the error"
@@ -177,7 +180,7 @@ def test_paper_schedule_stages():
     first, second, third = (schedule.weights_at(s) for s in (0, 150, 250))
     assert first.active() == ("shape_nll", "pose_nll", "global_rotation", "joints2d_mode")
     assert second.active() == (*first.active(), "joints2d_samples")
-    assert third.active() == LOSS_TERMS
+    assert third.active() == tuple(t for t in LOSS_TERMS if t != "shape_tpose_vertices")  # off
     assert schedule.weights_at(99) == first and schedule.weights_at(100) == second
     assert schedule.stage_index(199) == 1 and schedule.stage_index(200) == 2
     assert LossSchedule.from_dict(schedule.to_dict()) == schedule

@@ -256,12 +256,26 @@ def load_weights(network: Any, state: dict, source: Path | str) -> None:
             getattr(network, CALIBRATION_KEY).zero_()
 
 
+STEM_WEIGHT_KEY = "backbone.stem.0.weight"
+"""The first convolution's ``(width, input channels, 7, 7)`` weight in a network's state."""
+
+
+def with_zero_mask_channel(stem_weight: torch.Tensor) -> torch.Tensor:
+    """An ``"edges"`` network's first-layer weight ``(W, 1 + 17, k, k)`` widened for the
+    ``"edges+mask"`` proxy: ``(W, 2 + 17, k, k)`` with zeros for the mask channel (inserted after
+    the edge channel), so the widened network computes exactly what the original did."""
+    zeros = torch.zeros_like(stem_weight[:, :1])
+    return torch.cat([stem_weight[:, :1], zeros, stem_weight[:, 1:]], 1)
+
+
 def load_initial_weights(network: Any, path: Path | str, device: str | torch.device) -> None:
     """Copy a trained network's weights into ``network`` (``hkpd-train --init-weights``).
 
     The architectures must match, except that ``network`` may add the concentration gain the
-    trained one lacks: its gain layers then keep their zero initialisation, so the network
-    starts out predicting exactly what the trained one did. A per-joint concentration
+    trained one lacks (its gain layers then keep their zero initialisation), and may read the
+    ``"edges+mask"`` proxy where the trained one read ``"edges"`` (the mask channel's first-layer
+    weights start at zero): either way the network starts out predicting exactly what the
+    trained one did. A per-joint concentration
     calibration of the trained weights (:mod:`hkpd.training.calibrate_concentration`) is not
     carried over: a fine-tune trains the raw distributions; calibrate its result again.
 
@@ -276,12 +290,17 @@ def load_initial_weights(network: Any, path: Path | str, device: str | torch.dev
     adds_gain = wanted["concentration_gain"] and not found["concentration_gain"]
     if adds_gain:
         found["concentration_gain"] = True
+    adds_mask = found["image_proxy"] == "edges" and wanted["image_proxy"] == "edges+mask"
+    if adds_mask:
+        found["image_proxy"], found["input_channels"] = "edges+mask", wanted["input_channels"]
     if found != wanted:
         raise ValueError(
             f"--init-weights {path} has architecture {payload['network_config']}, but this run "
             f"builds {wanted}: match --image-size, --backbone-base-width and --pose-head"
         )
     weights = {key: value for key, value in initial.state_dict().items() if key != CALIBRATION_KEY}
+    if adds_mask:
+        weights[STEM_WEIGHT_KEY] = with_zero_mask_channel(weights[STEM_WEIGHT_KEY])
     missing, unexpected = network.load_state_dict(weights, strict=False)
     with torch.no_grad():
         getattr(network, CALIBRATION_KEY).zero_()

@@ -143,8 +143,9 @@ def prepare_network_input(
         if len(occluders):
             silhouette = apply_occluders(silhouette, occluders)  # the photo's own pixels
         crop_silhouette = crop.crop_image(silhouette.astype(np.uint8) * 255) >= 128
-    proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, crop_silhouette)
     person_mask, person_mask_known = _mask_evidence(detection, crop, occluders)
+    proxy_mask = _proxy_mask(image_proxy, crop_silhouette, person_mask, person_mask_known)
+    proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, proxy_mask)
     return NetworkInput(
         proxy=proxy,
         crop=crop,
@@ -169,6 +170,30 @@ def _mask_evidence(
         return None, None
     known = mask_known(crop, detection.image_size, occluders)
     return crop_person_mask(detection.person_mask, crop), known
+
+
+def _proxy_mask(
+    image_proxy: str,
+    crop_silhouette: np.ndarray | None,
+    person_mask: np.ndarray | None,
+    known: np.ndarray | None,
+) -> np.ndarray | None:
+    """What :func:`build_proxy` gets as its ``silhouette``: the given silhouette for the
+    ``"silhouette"`` proxy, the detector's mask for ``"edges+mask"``, else None."""
+    if image_proxy == "edges+mask":
+        return proxy_person_mask(person_mask, known)
+    return crop_silhouette
+
+
+def proxy_person_mask(
+    person_mask: np.ndarray | None, known: np.ndarray | None
+) -> np.ndarray | None:
+    """The ``"edges+mask"`` proxy's mask plane: ``(S, S)`` float32 person probability, zero
+    where the photo says nothing (occluders, outside the photo); None without a mask (the
+    plane is then all zero, as for the training examples without one)."""
+    if person_mask is None or known is None:
+        return None
+    return np.where(known, person_mask, 0.0).astype(np.float32)
 
 
 def crop_person_mask(mask: PersonMask, crop: CropTransform) -> np.ndarray:

@@ -45,7 +45,11 @@ from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
 from hkpd.prediction.detection.keypoint_detector import KeypointDetector
 from hkpd.prediction.image_input import LoadedImage
-from hkpd.prediction.network_input import NetworkInput, prepare_network_input
+from hkpd.prediction.network_input import (
+    NetworkInput,
+    prepare_network_input,
+    proxy_person_mask,
+)
 from hkpd.prediction.occluders import OccluderBoxes, Occluders
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
@@ -325,6 +329,9 @@ class PhotoTurnedProxy:
         prepared, silhouette = self.prepared, None
         if prepared.crop_silhouette is not None:
             silhouette = view.warp(prepared.crop_silhouette.astype(np.uint8) * 255) >= 128
+        elif self.image_proxy == "edges+mask":
+            mask = proxy_person_mask(prepared.person_mask, prepared.person_mask_known)
+            silhouette = None if mask is None else view.warp(mask)
         return build_proxy(
             view.warp(prepared.crop_rgb),
             view.points(prepared.keypoints_crop),

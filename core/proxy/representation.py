@@ -7,9 +7,15 @@ joints, with joints whose detector confidence is below ``CONFIDENCE_THRESHOLD`` 
 - ``"edges"`` (1 channel, the paper's and hkpd's choice): the Canny edge image of the RGB crop;
 - ``"silhouette"`` (1 channel): the person's mask (synthetic: the rendered body minus what
   occluders hide; photos: a segmentation the caller supplies, e.g. COCO's person masks);
-- ``"rgb"`` (3 channels): the crop's colours in [0, 1].
+- ``"rgb"`` (3 channels): the crop's colours in [0, 1];
+- ``"edges+mask"`` (2 channels): the edge image, then a person-probability mask in [0, 1]
+  (photos: BlazePose's segmentation, :class:`hkpd.prediction.detection.PersonMask`, zero inside
+  occluders and outside the photo; synthetic: the rendered silhouette degraded like a
+  segmenter's mask, :mod:`hkpd.synthesis.mask_noise`). A zero mask plane means "no mask": a
+  network trained with dropped masks then reads the edges and keypoints alone.
 
-The two non-edge proxies exist for the paper's proxy ablation (Table 1, rows 1-3).
+``"silhouette"`` and ``"rgb"`` exist for the paper's proxy ablation (Table 1, rows 1-3);
+``"edges+mask"`` is the input of networks that read the body's shape (issue 41).
 
 In compact form (crossing process boundaries, warping) an image proxy is ``(B, C, S, S)``
 uint8 *image planes* in [0, 255]; the float proxy holds ``planes / 255``, so edges and
@@ -31,14 +37,14 @@ NUM_KEYPOINTS = 17
 PROXY_CHANNELS = 1 + NUM_KEYPOINTS
 """Channels of the default (edge) proxy."""
 
-IMAGE_PROXIES: dict[str, int] = {"edges": 1, "silhouette": 1, "rgb": 3}
+IMAGE_PROXIES: dict[str, int] = {"edges": 1, "silhouette": 1, "rgb": 3, "edges+mask": 2}
 """The image proxies and their channel counts (see the module docstring)."""
 
 DEFAULT_IMAGE_PROXY = "edges"
 
 
 def image_proxy_channels(image_proxy: str) -> int:
-    """Channels of ``image_proxy``'s planes (1 or 3).
+    """Channels of ``image_proxy``'s planes (1, 2 or 3).
 
     Raises:
         ValueError: an unknown image proxy.
@@ -51,7 +57,7 @@ def image_proxy_channels(image_proxy: str) -> int:
 
 
 def proxy_channels(image_proxy: str = DEFAULT_IMAGE_PROXY) -> int:
-    """Channels of the whole proxy: the image proxy's plus 17 heatmaps (18 or 20)."""
+    """Channels of the whole proxy: the image proxy's plus 17 heatmaps (18, 19 or 20)."""
     return image_proxy_channels(image_proxy) + NUM_KEYPOINTS
 
 
@@ -76,7 +82,8 @@ def build_proxy_batch(
         present: ``(B, 17)`` bool, the joints to draw (e.g. ``joints_kept(confidences)``).
         device: where the result lives; defaults to ``keypoints``' device.
         image_proxy: one of :data:`IMAGE_PROXIES`.
-        silhouettes: ``(B, S, S)`` bool (or 0/1) person masks; needed for ``"silhouette"``.
+        silhouettes: ``(B, S, S)`` bool (or 0/1) person masks, needed for ``"silhouette"``;
+            or float person probabilities in [0, 1] for ``"edges+mask"`` (None: no mask).
 
     Returns:
         ``(B, C + 17, S, S)`` float32: the image proxy's ``C`` channels, then 17 heatmaps in
@@ -118,8 +125,9 @@ def image_planes_batch(
     Args:
         images: ``(B, S, S, 3)`` uint8 RGB crops (numpy, or a CPU/GPU tensor).
         image_proxy: one of :data:`IMAGE_PROXIES`.
-        silhouettes: ``(B, S, S)`` bool (or 0/1) person masks; needed for ``"silhouette"``,
-            ignored otherwise.
+        silhouettes: ``(B, S, S)`` bool (or 0/1) person masks, needed for ``"silhouette"``;
+            float person probabilities in [0, 1] for ``"edges+mask"`` (None: an all-zero
+            mask plane, "no mask"); ignored otherwise.
 
     Returns:
         ``(B, C, S, S)`` uint8 in [0, 255] on the CPU (edges and silhouettes are 0 or 255).
@@ -134,6 +142,9 @@ def image_planes_batch(
         return (edge_bits_batch(images_np) * 255)[:, None]
     if image_proxy == "rgb":
         return torch.from_numpy(np.ascontiguousarray(images_np.transpose(0, 3, 1, 2)))
+    if image_proxy == "edges+mask":
+        edges = edge_bits_batch(images_np) * 255
+        return torch.stack([edges, _probability_plane(silhouettes, images_np.shape[:3])], 1)
     if silhouettes is None:
         raise ValueError(
             "the silhouette proxy needs person masks: pass silhouettes (B, S, S), e.g. a "
@@ -145,6 +156,21 @@ def image_planes_batch(
             f"silhouettes must be {images_np.shape[:3]} like the crops, got {tuple(masks.shape)}"
         )
     return ((masks > 0).to(torch.uint8) * 255)[:, None]
+
+
+def _probability_plane(
+    probabilities: np.ndarray | torch.Tensor | None, shape: tuple[int, ...]
+) -> torch.Tensor:
+    """``(B, S, S)`` uint8 in [0, 255]: person probabilities (None: zeros, "no mask")."""
+    if probabilities is None:
+        return torch.zeros(shape, dtype=torch.uint8)
+    values = torch.as_tensor(probabilities).detach().cpu().float()
+    if tuple(values.shape) != tuple(shape):
+        raise ValueError(f"person masks must be {tuple(shape)} like the crops, got "
+                         f"{tuple(values.shape)}")  # fmt: skip
+    if not bool(torch.isfinite(values).all()):
+        raise ValueError("person masks must be finite probabilities in [0, 1]")
+    return values.clamp(0.0, 1.0).mul(255.0).round().to(torch.uint8)
 
 
 def _square_rgb_crops(images: np.ndarray | torch.Tensor) -> np.ndarray:
@@ -221,7 +247,8 @@ def build_proxy(
         confidences: ``(17,)`` detector confidences in [0, 1]; joints below
             ``CONFIDENCE_THRESHOLD`` are dropped.
         image_proxy: one of :data:`IMAGE_PROXIES`.
-        silhouette: ``(S, S)`` bool person mask; needed for ``"silhouette"``.
+        silhouette: ``(S, S)`` bool person mask, needed for ``"silhouette"``; or float person
+            probabilities in [0, 1] for ``"edges+mask"`` (None: no mask).
 
     Returns:
         ``(C + 17, S, S)`` float32 on the CPU.

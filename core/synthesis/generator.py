@@ -19,7 +19,9 @@ One batch, step by step (settings from the paper's supplement):
 5. The input keypoints get the keypoint augmentations (left/right swap, removal, ±8 px noise);
    the loss targets keep the exact ones. Edges and heatmaps form the proxy (or, for the proxy
    ablation, the body's silhouette minus what occluders hide, or the RGB image, instead of the
-   edges).
+   edges). The ``"edges+mask"`` proxy adds a detector-like person mask
+   (:func:`hkpd.synthesis.mask_noise.detector_like_masks` of the silhouette minus what
+   occluders hide, zero in occluded pixels; all zero, "no mask", in a share of the examples).
 
 Every random draw comes from one CPU ``torch.Generator`` seeded per batch, so a batch depends
 only on ``(seed, batch index)``: the same on CPU and CUDA, and a fixed test set is regenerated
@@ -70,6 +72,7 @@ from hkpd.synthesis.augmentations import (
     swap_left_right,
 )
 from hkpd.synthesis.batch import PackedBatch, TrainingBatch
+from hkpd.synthesis.mask_noise import MaskNoise, detector_like_masks
 from hkpd.synthesis.orientation import UPRIGHT, OrientationMix, sample_view_rotation
 from hkpd.synthesis.visibility import keypoint_visibility
 
@@ -86,7 +89,11 @@ class SyntheticDataConfig:
         orientation: extra rolls and steep views (:mod:`hkpd.synthesis.orientation`); the
             default adds none (upright people, as in the paper).
         image_proxy: the image part of the network input (:data:`hkpd.proxy.IMAGE_PROXIES`):
-            ``"edges"`` (hkpd's), or ``"silhouette"`` / ``"rgb"`` for the proxy ablation.
+            ``"edges"`` (hkpd's), ``"edges+mask"`` (edges and a detector-like person mask), or
+            ``"silhouette"`` / ``"rgb"`` for the proxy ablation.
+        mask_noise: how the ``"edges+mask"`` proxy's mask is degraded from the silhouette.
+        mask_missing_probability: share of ``"edges+mask"`` examples whose mask plane is all
+            zero (a detector that gave no mask), so that the network also reads without one.
     """
 
     image_size: int = CROP_SIZE
@@ -95,9 +102,15 @@ class SyntheticDataConfig:
     augmentation: AugmentationConfig = field(default_factory=AugmentationConfig)
     orientation: OrientationMix = UPRIGHT
     image_proxy: str = DEFAULT_IMAGE_PROXY
+    mask_noise: MaskNoise = field(default_factory=MaskNoise)
+    mask_missing_probability: float = 0.1
 
     def __post_init__(self) -> None:
         image_proxy_channels(self.image_proxy)  # raises on an unknown name
+        if not 0.0 <= self.mask_missing_probability <= 1.0:
+            raise ValueError(
+                f"mask_missing_probability must be in [0, 1], got {self.mask_missing_probability}"
+            )
 
 
 @dataclass
@@ -258,7 +271,7 @@ class SyntheticDataGenerator:
 
         pixels = image.mul_(255.0).add_(0.5).clamp_(0.0, 255.0).to(torch.uint8)
         images = pixels.permute(0, 2, 3, 1).contiguous().cpu().numpy()  # contiguous rows for cv2
-        silhouettes = rendered.mask & ~occluded if config.image_proxy == "silhouette" else None
+        silhouettes = self._proxy_silhouettes(rendered.mask, occluded, generator)
         planes = image_planes_batch(images, config.image_proxy, silhouettes).to(self.device)
         packed = PackedBatch(
             image_planes=planes,
@@ -274,6 +287,24 @@ class SyntheticDataGenerator:
             focal_px=camera.focal,
         )
         return packed, images, part_map, occluded
+
+    def _proxy_silhouettes(
+        self, body_mask: torch.Tensor, occluded: torch.Tensor, generator: torch.Generator
+    ) -> torch.Tensor | None:
+        """What the image proxy gets as ``silhouettes``: the ``(B, S, S)`` bool silhouette minus
+        occluded pixels (``"silhouette"``), a float32 detector-like mask in [0, 1] that is zero
+        where occluded and in the examples without a mask (``"edges+mask"``), or None."""
+        proxy = self.config.image_proxy
+        if proxy not in ("silhouette", "edges+mask"):
+            return None
+        visible = body_mask & ~occluded
+        if proxy == "silhouette":
+            return visible
+        known = ~occluded
+        masks = detector_like_masks(visible, known, self.config.mask_noise, generator)
+        missing = torch.rand(masks.shape[0], generator=generator)
+        missing = (missing < self.config.mask_missing_probability).to(masks.device)
+        return torch.where(known & ~missing[:, None, None], masks, 0.0)
 
     def _draw_scene(
         self, count: int, generator: torch.Generator, fixed_betas: torch.Tensor | None

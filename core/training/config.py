@@ -56,6 +56,8 @@ class TrainConfig:
         mode_loss_weight: weight of the 2D keypoint loss of the most likely body (the mode pose
             with the mean shape), on from the first step. Larger values make the mode follow
             the keypoint heatmaps more closely rather than the pose prior the network learnt.
+        tpose_loss_weight: weight of the per-vertex T-pose shape loss (m², all stages; 0 off):
+            the shape mean's rest vertices against the true shape's, as in the paper's code.
         joints3d_loss_from: step at which the 3D joint loss starts (stage 3); -1 never.
         device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
         amp: mixed precision on CUDA (ignored on CPU).
@@ -128,6 +130,7 @@ class TrainConfig:
     joints3d_loss_from: int = 10_000
     samples_loss_weight: float = 1000.0
     mode_loss_weight: float = 1000.0
+    tpose_loss_weight: float = 0.0
     device: str = "auto"
     amp: bool = True
     seed: int = 0
@@ -169,7 +172,7 @@ class TrainConfig:
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{_flag(name)} must be a finite number > 0, got {value}")
-        for name in ("samples_loss_weight", "mode_loss_weight"):
+        for name in ("samples_loss_weight", "mode_loss_weight", "tpose_loss_weight"):
             weight = getattr(self, name)
             if not (math.isfinite(weight) and weight >= 0):
                 raise ValueError(f"{_flag(name)} must be a finite number >= 0, got {weight}")

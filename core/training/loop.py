@@ -86,7 +86,9 @@ def build_schedule(config: TrainConfig, weights: LossWeights | None = None) -> L
     ``mode_loss_weight``) are the weights of every term once it is on.
     """
     full = weights or LossWeights(
-        joints2d_samples=config.samples_loss_weight, joints2d_mode=config.mode_loss_weight
+        joints2d_samples=config.samples_loss_weight,
+        joints2d_mode=config.mode_loss_weight,
+        shape_tpose_vertices=config.tpose_loss_weight,
     )
     events = []
     if config.samples_loss_from >= 0:

@@ -45,6 +45,24 @@ def shape_nll(mean: torch.Tensor, std: torch.Tensor, betas: torch.Tensor) -> tor
     return -body_shape_distribution(mean, std).log_prob(betas).mean()
 
 
+def tpose_vertex_loss(body: BodyModel, mean: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
+    """Per-vertex T-pose shape loss: mean squared distance (m²) between the rest-pose vertices
+    of the predicted shape mean and of the true shape (no pose, no global rotation, no camera).
+
+    The rest vertices are linear in the coefficients, so the difference is
+    ``shapedirs @ (mean - betas)``: a coefficient that barely moves the body costs little.
+
+    Args:
+        body: the body model (its ``shapedirs`` ``(V, 3, K)``).
+        mean, betas: ``(B, K)`` predicted mean and true coefficients.
+
+    Returns:
+        Scalar: mean over examples and vertices of the squared distance.
+    """
+    difference = torch.einsum("vck,bk->bvc", body.shapedirs.to(mean.dtype), mean - betas)
+    return difference.square().sum(-1).mean()
+
+
 def pose_nll(F: torch.Tensor | KinematicMatrixFisher, body_pose: torch.Tensor) -> torch.Tensor:
     """Matrix-Fisher NLL of the relative joint rotations (paper Eq. 8).
 
@@ -135,7 +153,8 @@ def compute_losses(
             from ``batch.proxy``, which is always right for batches from the data generator.
         generator: optional random generator for the samples.
         shape_from_nll_only: pose the bodies of the 2D and 3D joint terms with the predicted
-            shape distribution *detached*, so that only the shape NLL trains it. Otherwise the
+            shape distribution *detached*, so that only the shape NLL (and the T-pose vertex
+            loss, when on) trains it. Otherwise the
             joint terms (the samples loss above all, weighted 1000-16000) also push the shape,
             and where poses are hard to read they bend it to absorb pose errors (measured on
             rolled views: their gradient on the shape mean is 17-140× the NLL's).
@@ -180,6 +199,8 @@ def _compute_losses(
         terms["pose_nll"] = pose_nll(pose, batch.body_pose)
     if weights.global_rotation > 0:
         terms["global_rotation"] = global_rotation_loss(output.global_orient, batch.global_orient)
+    if weights.shape_tpose_vertices > 0:
+        terms["shape_tpose_vertices"] = tpose_vertex_loss(body, output.shape_mean, batch.betas)
     if shape_from_nll_only:  # the joint terms below see a shape they cannot move
         output = replace(
             output, shape_mean=output.shape_mean.detach(), shape_std=output.shape_std.detach()

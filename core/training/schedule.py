@@ -19,6 +19,7 @@ LOSS_TERMS = (
     "joints2d_mode",
     "joints2d_samples",
     "joints3d_mode",
+    "shape_tpose_vertices",
 )
 """Names of the loss terms, as keys of :func:`hkpd.training.losses.compute_losses`' result."""
 
@@ -39,6 +40,9 @@ class LossWeights:
         joints2d_mode: 2D COCO keypoint loss of the mode body.
         joints2d_samples: 2D keypoint loss of sampled bodies (Eq. 10).
         joints3d_mode: 3D joint loss of the mode body.
+        shape_tpose_vertices: per-vertex T-pose loss of the shape mean (the paper's code adds
+            it to the shape NLL): squared vertex distances in m², so each coefficient counts by
+            how much it moves the body. Off by default (the shipped runs did without).
     """
 
     shape_nll: float = 1.0
@@ -47,6 +51,7 @@ class LossWeights:
     joints2d_mode: float = 1000.0
     joints2d_samples: float = 1000.0
     joints3d_mode: float = 1000.0
+    shape_tpose_vertices: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
