@@ -276,6 +276,8 @@ class ExplorerApp:
         if rescaled:
             scene.heatmap = scale
             scene.show_legend()
+            if scene.combined_shown:  # recolour the combined shape (and its colour bar)
+                self.worker.submit("same_person", self._same_person_job)
         self.redraw()
         return rescaled
 
@@ -524,7 +526,7 @@ class ExplorerApp:
             with self._lock:
                 self._combined = combined
             uncertainty = combined.vertex_uncertainty.detach().cpu().numpy()
-            title = f"Combined shape · {combined.count} photos · std {combined.mean_std:.2f}"
+            title = f"Combined shape · {combined.count} photos"  # std: in the panel
             self.scene.show_combined_shape(
                 combined.tpose_vertices.detach().cpu().numpy(), uncertainty, title
             )

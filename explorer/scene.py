@@ -300,8 +300,10 @@ class ExplorerScene:
         self, vertices: np.ndarray | None, uncertainty_m: np.ndarray | None, title: str = ""
     ) -> None:
         """The shape combined from several photos: ``vertices (V, 3)`` T-pose in the body frame
-        (metres), coloured by ``uncertainty_m (V,)`` on the heatmap's scale, under ``title``;
-        None removes it. Needs the faces of a drawn view."""
+        (metres, drawn at scale 1 like the other bodies: a standing T-pose is taller than a
+        kneeling mode), coloured by ``uncertainty_m (V,)`` on the absolute scale in use, with
+        its own colour bar under it and ``title`` in the row of the column titles; None
+        removes it. Needs the faces of a drawn view."""
         with self._lock, self.server.atomic():
             for node in self._combined:
                 node.remove()
@@ -323,6 +325,12 @@ class ExplorerScene:
                 self.server.scene.add_label(
                     "/combined_title", title, position=(COMBINED_OFFSET, self.titles_top, 0.0),
                     font_screen_scale=1.15, anchor="bottom-center",
+                ),
+                self.server.scene.add_image(
+                    "/combined_legend", self.absolute_scale.legend(width=640, height=150),
+                    *LEGEND_SIZE_M, format="png", wxyz=HALF_TURN_ABOUT_X,
+                    position=(COMBINED_OFFSET, LEGEND_HEIGHT, LEGEND_Z), cast_shadow=False,
+                    receive_shadow=False,
                 ),
             ]  # fmt: skip
 
