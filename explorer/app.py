@@ -574,15 +574,14 @@ class ExplorerApp:
         )
 
     def _baseline_uncertainty(self, snapshot: StateSnapshot) -> np.ndarray | None:
-        """The change colouring's baseline uncertainty for the shown result (predicted here,
-        once per photo and person, when the change colouring is on and it is missing)."""
+        """The change colouring's baseline uncertainty for the shown result while that
+        colouring is on (else None: no extra sampling); the baseline posterior is predicted
+        here, once per photo and person, when it is missing."""
         with self._lock:
-            key, image = self._result_key, self._image
-        if key is None or key.image_token != self._image_token:
+            key, image, token = self._result_key, self._image, self._image_token
+        if key is None or key.image_token != token or self.scene.heatmap.kind != "change":
             return None
-        predict = None
-        if self.scene.heatmap.kind == "change":  # the baseline: no occluders, same person
-            predict = functools.partial(self._predict_baseline, image, key)
+        predict = functools.partial(self._predict_baseline, image, key)
         if self.baselines.posterior(key, predict) is None:
             return None
         return self.baselines.uncertainty(key, snapshot.num_samples, snapshot.seed)
