@@ -14,7 +14,12 @@ import pytest
 import trimesh
 from PIL import Image
 
-from hkpd.explorer.colour_map import legend_image, uncertainty_colours
+from hkpd.explorer.colour_map import (
+    HeatmapScale,
+    change_colours,
+    legend_image,
+    uncertainty_colours,
+)
 from hkpd.explorer.export import meshes_file, png_bytes
 from hkpd.explorer.photo_geometry import (
     HALF_TURN_ABOUT_X,
@@ -229,6 +234,26 @@ def test_uncertainty_colours_match_hkpd_predict_and_saturate():
     )
     legend = legend_image(15.0)
     assert legend.shape == (64, 320, 3) and legend.std() > 20
+
+
+def test_the_log_scale_keeps_chain_ends_apart_and_the_change_map_diverges():
+    # The shipped photo's range (2.5 .. 22.5 cm): distinct colours, none at the top colour.
+    values_m = np.array([0.025, 0.067, 0.15, 0.225])
+    log = HeatmapScale("log").colours(values_m)
+    assert len({tuple(c) for c in log}) == 4
+    top = HeatmapScale("log").colours(np.array([1.0]))[0]
+    assert not any(np.array_equal(c, top) for c in log)
+    linear = HeatmapScale("linear", 10.0).colours(values_m)
+    np.testing.assert_array_equal(linear[2], linear[3])  # the old linear scale saturates
+    change = change_colours(np.array([1 / 3, 0.7, 1.0, 1.5, 3.0, 10.0]))
+    assert abs(int(change[2, 0]) - int(change[2, 2])) < 10  # 1x: neutral grey
+    assert change[3, 0] > change[3, 2] + 30 and change[1, 2] > change[1, 0] + 20  # red / blue
+    np.testing.assert_array_equal(change[4], change[5])  # saturates at 3x
+    legends = [HeatmapScale(kind).legend() for kind in ("log", "linear", "change")]
+    assert all(legend.shape == (64, 320, 3) for legend in legends)
+    assert not np.array_equal(legends[0], legends[2])
+    with pytest.raises(ValueError, match="unknown colouring"):
+        HeatmapScale("rainbow")
 
 
 # ---------------------------------------------------------------------------- uploads / export
