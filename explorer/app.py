@@ -10,6 +10,7 @@ broadcasts to every tab.
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 import threading
@@ -21,6 +22,8 @@ import torch
 import viser
 
 from hkpd.distributions import MatrixFisher
+from hkpd.explorer.change_baseline import BaselineCache, BaselineKey
+from hkpd.explorer.colour_map import HeatmapScale
 from hkpd.explorer.export import meshes_file, png_bytes
 from hkpd.explorer.panels import build_panels
 from hkpd.explorer.panels.same_person import ONLY_CURRENT_PHOTO
@@ -33,12 +36,18 @@ from hkpd.explorer.photo_geometry import (
 from hkpd.explorer.posterior_view import PosteriorView, compute_view
 from hkpd.explorer.provider import Box, PosteriorProvider, PredictionResult
 from hkpd.explorer.scene import COMBINED_OFFSET, HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
-from hkpd.explorer.state import MAX_OCCLUDERS, MAX_SAME_PERSON_PHOTOS, ExplorerState
+from hkpd.explorer.state import (
+    MAX_OCCLUDERS,
+    MAX_SAME_PERSON_PHOTOS,
+    ExplorerState,
+    StateSnapshot,
+)
 from hkpd.explorer.upload import UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
 from hkpd.kinematic_tree import body_joint_index
 from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
 from hkpd.prediction.exports.fit_overlay import FitOverlay, render_fit_overlay
+from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.shape_combination import CombinedShape, combine_shape_tensors
 
 PREDICTION_DEBOUNCE_S = 0.12
@@ -105,6 +114,8 @@ class ExplorerApp:
         self._image_token = 0
         self._placed_token = -1
         self._result: PredictionResult | None = None
+        self._result_key: BaselineKey | None = None
+        self.baselines = BaselineCache()
         self._view: PosteriorView | None = None
         self._framed: PhotoPlacement | None = None
         self._same_person_queue: list[tuple[np.ndarray, str, viser.ClientHandle | None, int]] = []
@@ -247,16 +258,26 @@ class ExplorerApp:
         self.worker.submit("sample", self._sample_job)
 
     def set_display_options(
-        self, samples: bool, heatmap: bool, reprojection: bool, heatmap_max_cm: float
+        self,
+        samples: bool,
+        heatmap: bool,
+        reprojection: bool,
+        heatmap_max_cm: float,
+        colouring: str = "log",
     ) -> bool:
-        """Which parts are drawn and the colour scale's top; True if the scale changed."""
+        """Which parts are drawn, the uncertainty body's colouring (a key of
+        :data:`~hkpd.explorer.colour_map.COLOURINGS`) and the linear scale's top; True if the
+        colour scale changed."""
         scene = self.scene
         scene.show_samples, scene.show_heatmap = bool(samples), bool(heatmap)
         scene.show_reprojection = bool(reprojection)
-        rescaled = scene.heatmap_max_cm != heatmap_max_cm
+        scale = HeatmapScale(colouring, float(heatmap_max_cm))
+        rescaled = scene.heatmap != scale
         if rescaled:
-            scene.heatmap_max_cm = float(heatmap_max_cm)
+            scene.heatmap = scale
             scene.show_legend()
+            if scene.combined_shown:  # recolour the combined shape (and its colour bar)
+                self.worker.submit("same_person", self._same_person_job)
         self.redraw()
         return rescaled
 
@@ -357,7 +378,8 @@ class ExplorerApp:
             self._no_person()
             return
         self.timings.predict = time.perf_counter() - started
-        self._show_prediction(result, image, token)
+        key = BaselineKey(token, snapshot.person_box, snapshot.evidence)
+        self._show_prediction(result, image, token, key, not snapshot.active_boxes)
 
     def _find_people(self, image: np.ndarray, token: int) -> None:
         """List the photo's people (when the provider can) and offer them in the panel."""
@@ -411,16 +433,27 @@ class ExplorerApp:
         snapshot = self.state.snapshot()
         self.panels.photo.occluders.show(snapshot.occluders, snapshot.image_size)
         self.scene.show_person_box(None)
-        self._show_prediction(result, image, token)
+        self._show_prediction(result, image, token, BaselineKey(token, None, snapshot.evidence))
         self._notify(client, "Photo loaded", name)
 
-    def _show_prediction(self, result: PredictionResult, image: np.ndarray, token: int) -> None:
+    def _show_prediction(
+        self,
+        result: PredictionResult,
+        image: np.ndarray,
+        token: int,
+        key: BaselineKey,
+        without_occluders: bool = True,
+    ) -> None:
+        """Show ``result`` (predicted for ``key``; the change colouring's baseline when it was
+        predicted ``without_occluders``)."""
         with self._lock:
             if token != self._image_token:
                 return  # a newer photo replaced this one meanwhile
-            self._result = result
+            self._result, self._result_key = result, key
             new_photo = token != self._placed_token
             self._placed_token = token
+        if without_occluders:
+            self.baselines.record(key, result.posterior)
         posterior = result.posterior
         if new_photo:
             self._find_people(image, token)
@@ -493,7 +526,7 @@ class ExplorerApp:
             with self._lock:
                 self._combined = combined
             uncertainty = combined.vertex_uncertainty.detach().cpu().numpy()
-            title = f"Combined shape · {combined.count} photos · std {combined.mean_std:.2f}"
+            title = f"Combined shape · {combined.count} photos"  # std: in the panel
             self.scene.show_combined_shape(
                 combined.tpose_vertices.detach().cpu().numpy(), uncertainty, title
             )
@@ -516,7 +549,7 @@ class ExplorerApp:
             return
         snapshot = self.state.snapshot()
         started = time.perf_counter()
-        view = compute_view(result.posterior, snapshot)
+        view = compute_view(result.posterior, snapshot, self._baseline_uncertainty(snapshot))
         drawn = time.perf_counter()
         self.scene.show_view(view, faces=result.posterior.body.faces.cpu().numpy())
         done = time.perf_counter()
@@ -539,6 +572,23 @@ class ExplorerApp:
             f"{snapshot.num_samples} samples + heatmap {self.timings.sample * 1000:.0f} ms · "
             f"drawing {self.timings.draw * 1000:.0f} ms"
         )
+
+    def _baseline_uncertainty(self, snapshot: StateSnapshot) -> np.ndarray | None:
+        """The change colouring's baseline uncertainty for the shown result while that
+        colouring is on (else None: no extra sampling); the baseline posterior is predicted
+        here, once per photo and person, when it is missing."""
+        with self._lock:
+            key, image, token = self._result_key, self._image, self._image_token
+        if key is None or key.image_token != token or self.scene.heatmap.kind != "change":
+            return None
+        predict = functools.partial(self._predict_baseline, image, key)
+        if self.baselines.posterior(key, predict) is None:
+            return None
+        return self.baselines.uncertainty(key, snapshot.num_samples, snapshot.seed)
+
+    def _predict_baseline(self, image: np.ndarray, key: BaselineKey) -> BodyPosterior:
+        result = self.provider.predict(image, [], evidence=key.evidence, bbox=key.person_box)
+        return result.posterior
 
     def _export_job(self, file_format: str, client: viser.ClientHandle) -> None:
         view = self.view

@@ -39,7 +39,10 @@ def meshes_file(
             faces=np.asarray(faces),
             process=False,
         )
-        mesh.visual.face_colors = np.tile(np.array(colour, dtype=np.uint8), (len(faces), 1))
+        # Vertex colours, not face colours: glTF stores colours per vertex, and trimesh turns
+        # face colours into vertex colours through a scipy sparse matrix (scipy is not a
+        # dependency of the main install).
+        mesh.visual.vertex_colors = np.tile(np.array(colour, dtype=np.uint8), (len(vertices), 1))
         meshes.append((name, mesh))
     if file_format == "ply":
         merged = trimesh.util.concatenate([mesh for _, mesh in meshes])

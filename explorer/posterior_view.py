@@ -3,7 +3,9 @@
 :func:`adjust_posterior` applies the user's concentration and shape-spread factors to the
 predicted posterior; :func:`compute_view` draws the samples once (``num_samples`` of them, the
 first ``num_displayed`` are also the meshes shown) and derives the mode, the per-vertex
-uncertainty, the reprojected 2D keypoints and the selected joint's principal axes.
+uncertainty, the reprojected 2D keypoints and the selected joint's principal axes; given the
+*baseline* uncertainty (:func:`baseline_uncertainty`: the same photo without occluders, default
+concentrations, same seed and sample count), also each vertex's change ratio.
 """
 
 from __future__ import annotations
@@ -51,6 +53,8 @@ class PosteriorView:
         uncertainty: ``(V,)`` metres, over all N samples.
         axes: principal axes of the selected joint.
         sampling_version: the state version this view was computed for.
+        change_ratio: ``(V,)`` ``uncertainty`` / the baseline's (dimensionless), or None when
+            no baseline was given.
     """
 
     posterior: BodyPosterior
@@ -62,6 +66,7 @@ class PosteriorView:
     uncertainty: np.ndarray
     axes: JointAxes
     sampling_version: int
+    change_ratio: np.ndarray | None = None
 
 
 def adjust_posterior(base: BodyPosterior, snapshot: StateSnapshot) -> BodyPosterior:
@@ -105,12 +110,34 @@ def joint_axes(posterior: BodyPosterior, joint: str, mode_joints: np.ndarray) ->
     )
 
 
-def compute_view(base: BodyPosterior, snapshot: StateSnapshot) -> PosteriorView:
-    """Adjust, sample and summarise (see the module docstring). Seeded by ``snapshot.seed``."""
+MIN_BASELINE_M = 1e-4
+"""Floor of the baseline uncertainty in the change ratio (0.1 mm: no division by zero)."""
+
+
+def baseline_uncertainty(baseline: BodyPosterior, num_samples: int, seed: int) -> np.ndarray:
+    """``(V,)`` metres: per-vertex uncertainty of ``baseline`` (unadjusted: default
+    concentrations) over ``num_samples`` samples drawn with ``seed``, as :func:`compute_view`
+    draws them (the same seed keeps the sampling noise of the two alike)."""
+    samples = baseline.sample(num_samples, seed=seed)
+    return vertex_uncertainty(samples.vertices).float().cpu().numpy()
+
+
+def compute_view(
+    base: BodyPosterior, snapshot: StateSnapshot, baseline_m: np.ndarray | None = None
+) -> PosteriorView:
+    """Adjust, sample and summarise (see the module docstring). Seeded by ``snapshot.seed``.
+
+    Args:
+        base: the predicted posterior.
+        snapshot: the sliders.
+        baseline_m: ``(V,)`` the baseline's uncertainty (:func:`baseline_uncertainty`), metres,
+            or None (then ``change_ratio`` is None).
+    """
     posterior = adjust_posterior(base, snapshot)
     mode = posterior.mode()
     samples = posterior.sample(snapshot.num_samples, seed=snapshot.seed)
     shown = min(snapshot.num_displayed, snapshot.num_samples)
+    uncertainty = vertex_uncertainty(samples.vertices).float().cpu().numpy()
     mode_joints = mode.joints[0].float().cpu().numpy()
     return PosteriorView(
         posterior=posterior,
@@ -119,9 +146,12 @@ def compute_view(base: BodyPosterior, snapshot: StateSnapshot) -> PosteriorView:
         mode_keypoints2d=mode.keypoints2d[0].float().cpu().numpy(),
         sample_vertices=samples.vertices[:shown].float().cpu().numpy(),
         sample_keypoints2d=samples.keypoints2d.float().cpu().numpy(),
-        uncertainty=vertex_uncertainty(samples.vertices).float().cpu().numpy(),
+        uncertainty=uncertainty,
         axes=joint_axes(posterior, snapshot.selected_joint, mode_joints),
         sampling_version=snapshot.sampling_version,
+        change_ratio=None
+        if baseline_m is None
+        else uncertainty / np.maximum(np.asarray(baseline_m, np.float32), MIN_BASELINE_M),
     )
 
 

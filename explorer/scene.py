@@ -21,7 +21,7 @@ import numpy as np
 import viser
 
 from hkpd.coco_keypoints import COCO17_LIMBS
-from hkpd.explorer.colour_map import DEFAULT_MAX_CM, legend_image, uncertainty_colours
+from hkpd.explorer.colour_map import HeatmapScale
 from hkpd.explorer.photo_geometry import HALF_TURN_ABOUT_X, PhotoPlacement
 from hkpd.explorer.posterior_view import PosteriorView
 from hkpd.explorer.state import Occluder
@@ -42,6 +42,19 @@ PHOTO_GAP = 0.9
 """Metres between the photo's right edge and the body's centre (half an arm span)."""
 LEGEND_HEIGHT = -1.22
 """World height of the colour bar's centre."""
+LEGEND_SIZE_M = (1.4, 1.4 * 150 / 640)
+"""World width and height of the colour bar."""
+LEGEND_Z = 0.05
+"""World z of the colour bar (in front of the photo plane)."""
+FLOOR_HEIGHT = -1.0
+"""World y of the floor grid."""
+FLOOR_DEPTH = 4.0
+"""Metres the floor grid reaches back from the photo plane (z = 0) into the scene."""
+FLOOR_RIGHT = COMBINED_OFFSET + 1.2
+"""World x of the floor's right edge (past the combined-shape body's hand)."""
+JOINT_LABEL_HEIGHT = LEGEND_HEIGHT + 0.05
+"""World height of the selected joint's concentration label, under the mode body (beside the
+joint it ran into the uncertainty body)."""
 OVERLAY_LIFT = -0.004
 """Local z of drawings on the photo (negative: towards the viewer)."""
 
@@ -60,7 +73,10 @@ class ExplorerScene:
         self.show_samples = True
         self.show_heatmap = True
         self.show_reprojection = True
-        self.heatmap_max_cm = DEFAULT_MAX_CM
+        self.heatmap = HeatmapScale()
+        self.legend_scale: HeatmapScale | None = None
+        """The colouring the drawn colour bar shows (the change colouring without a baseline
+        falls back to the log scale, and the colour bar says so)."""
         self._lock = threading.RLock()
         self._samples: list[viser.MeshHandle] = []
         self._mode: viser.MeshHandle | None = None
@@ -71,6 +87,8 @@ class ExplorerScene:
         self._fit_node: viser.SceneNodeHandle | None = None
         self._combined: list[viser.SceneNodeHandle] = []
         self.combined_shown = False
+        self.titles_top = 1.08
+        """World height of the column titles (the combined-shape body's title too)."""
         server.scene.set_up_direction("+y")
         server.scene.world_axes.visible = False
         self.scene_body = server.scene.add_frame(
@@ -83,15 +101,13 @@ class ExplorerScene:
             "/combined", wxyz=HALF_TURN_ABOUT_X, position=(COMBINED_OFFSET, 0.0, 0.0),
             show_axes=False,
         )  # fmt: skip
-        server.scene.add_grid(
-            "/floor",
-            width=8.0,
-            height=4.0,
-            plane="xz",
-            position=(0.0, -1.0, 0.0),
-            cell_color=(215, 215, 215),
-            section_color=(180, 180, 180),
-        )
+        add_floor(server.scene, left=-(PHOTO_GAP + 2.0))
+
+    @property
+    def absolute_scale(self) -> HeatmapScale:
+        """The colouring of absolute uncertainty in use (the log scale while the uncertainty
+        body shows the change colouring): the combined-shape body's."""
+        return HeatmapScale("log") if self.heatmap.kind == "change" else self.heatmap
 
     def show_titles(self, top: float) -> None:
         """Titles above the three columns and the colour bar under the heatmap body.
@@ -106,6 +122,7 @@ class ExplorerScene:
                 ("samples", "Most likely body + samples", BODY_POSITION[0]),
                 ("uncertainty", "Uncertainty over samples", HEATMAP_OFFSET),
             )
+            self.titles_top = top
             for name, text, x in titles:
                 self.server.scene.add_label(
                     f"/titles/{name}",
@@ -116,19 +133,20 @@ class ExplorerScene:
                 )
             self.show_legend()
 
-    def show_legend(self) -> None:
-        """The colour bar (centimetres) under the heatmap body."""
+    def show_legend(self, scale: HeatmapScale | None = None) -> None:
+        """The colour bar of ``scale`` (default: :attr:`heatmap`) under the heatmap body; its
+        title says what is shown and in which unit."""
         with self._lock:
+            scale = self.heatmap if scale is None else scale
+            self.legend_scale = scale
             # Large enough that its labels read at the framed distance (they were tiny).
-            legend = legend_image(self.heatmap_max_cm, width=640, height=150)
             self.server.scene.add_image(
                 "/legend",
-                legend,
-                1.4,
-                1.4 * 150 / 640,
+                scale.legend(width=640, height=150),
+                *LEGEND_SIZE_M,
                 format="png",
                 wxyz=HALF_TURN_ABOUT_X,
-                position=(HEATMAP_OFFSET, LEGEND_HEIGHT, 0.05),
+                position=(HEATMAP_OFFSET, LEGEND_HEIGHT, LEGEND_Z),
                 cast_shadow=False,
                 receive_shadow=False,
             )
@@ -149,6 +167,7 @@ class ExplorerScene:
                 self._person_node.remove()
                 self._person_node = None
             self.placement = placement
+            add_floor(self.server.scene, left=placement.centre[0] - placement.width_m / 2)
             self.server.scene.add_image(
                 "/photo",
                 image,
@@ -281,8 +300,10 @@ class ExplorerScene:
         self, vertices: np.ndarray | None, uncertainty_m: np.ndarray | None, title: str = ""
     ) -> None:
         """The shape combined from several photos: ``vertices (V, 3)`` T-pose in the body frame
-        (metres), coloured by ``uncertainty_m (V,)`` on the heatmap's scale, under ``title``;
-        None removes it. Needs the faces of a drawn view."""
+        (metres, drawn at scale 1 like the other bodies: a standing T-pose is taller than a
+        kneeling mode), coloured by ``uncertainty_m (V,)`` on the absolute scale in use, with
+        its own colour bar under it and ``title`` in the row of the column titles; None
+        removes it. Needs the faces of a drawn view."""
         with self._lock, self.server.atomic():
             for node in self._combined:
                 node.remove()
@@ -298,12 +319,18 @@ class ExplorerScene:
                 ),
                 self.server.scene.add_point_cloud(
                     "/combined/points", points,
-                    uncertainty_colours(uncertainty_m, self.heatmap_max_cm), point_size=0.03,
+                    self.absolute_scale.colours(uncertainty_m), point_size=0.03,
                     point_shape="circle", point_shading="flat",
                 ),
                 self.server.scene.add_label(
-                    "/combined_title", title, position=(COMBINED_OFFSET, 1.05, 0.0),
-                    font_screen_scale=1.0, anchor="bottom-center",
+                    "/combined_title", title, position=(COMBINED_OFFSET, self.titles_top, 0.0),
+                    font_screen_scale=1.15, anchor="bottom-center",
+                ),
+                self.server.scene.add_image(
+                    "/combined_legend", self.absolute_scale.legend(width=640, height=150),
+                    *LEGEND_SIZE_M, format="png", wxyz=HALF_TURN_ABOUT_X,
+                    position=(COMBINED_OFFSET, LEGEND_HEIGHT, LEGEND_Z), cast_shadow=False,
+                    receive_shadow=False,
                 ),
             ]  # fmt: skip
 
@@ -378,7 +405,14 @@ class ExplorerScene:
             )
         else:
             self._heat_base.vertices = view.mode_vertices
-        colours = uncertainty_colours(view.uncertainty, self.heatmap_max_cm)
+        scale, values = self.heatmap, view.uncertainty
+        if scale.kind == "change" and view.change_ratio is not None:
+            values = view.change_ratio
+        elif scale.kind == "change":
+            scale = HeatmapScale("log")  # no baseline (yet): absolute, and the bar says so
+        if scale != self.legend_scale:
+            self.show_legend(scale)
+        colours = scale.colours(values)
         if self._heat_points is None:
             self._heat_points = self.server.scene.add_point_cloud(
                 "/heat/points",
@@ -413,12 +447,14 @@ class ExplorerScene:
             f"{name} {_concentration_text(value)}"
             for name, value in zip(("red", "green", "blue"), axes.concentrations, strict=True)
         )
+        # Under the mode body in world coordinates (not beside the joint, where it ran into
+        # the uncertainty body): the arrows' colours name the axes.
         self.server.scene.add_label(
-            "/body/joint_axes_label",
-            f"{view.axes.joint.replace('_', ' ')}: {text}",
-            position=tuple((axes.origin + np.array([0.12, -0.12, 0.0])).tolist()),
+            "/joint_axes_label",
+            f"Arrows at the {view.axes.joint.replace('_', ' ')}: {text}",
+            position=(BODY_POSITION[0], JOINT_LABEL_HEIGHT, LEGEND_Z),
             font_screen_scale=0.85,
-            anchor="bottom-left",
+            anchor="top-center",
         )
 
     def _update_reprojection(self, view: PosteriorView) -> None:
@@ -426,8 +462,10 @@ class ExplorerScene:
             return
         bones = np.array(COCO17_LIMBS)
         shown = view.sample_keypoints2d[: max(len(view.sample_vertices), 1)]
-        segments = self._photo_points(shown[:, bones].reshape(-1, 2, 2))
-        mode_segments = self._photo_points(view.mode_keypoints2d[bones])
+        size = (self.placement.width_px, self.placement.height_px)
+        # Clipped to the photo: the lines of a limb reprojected off the photo stay on it.
+        segments = self._photo_points(clip_segments(shown[:, bones].reshape(-1, 2, 2), size))
+        mode_segments = self._photo_points(clip_segments(view.mode_keypoints2d[bones], size))
         points = np.concatenate([segments, mode_segments]).astype(np.float32)
         colours = np.concatenate(
             [
@@ -448,3 +486,59 @@ class ExplorerScene:
 def _concentration_text(value: float) -> str:
     """Two significant digits below 10 (``2.4``), whole numbers above (``285``)."""
     return f"{value:.2g}" if value < 10 else f"{value:.0f}"
+
+
+def add_floor(scene: viser.SceneApi, left: float, right: float = FLOOR_RIGHT) -> viser.GridHandle:
+    """The floor grid, from world x ``left`` to ``right``, entirely BEHIND the photo plane
+    (z <= 0) at :data:`FLOOR_HEIGHT`.
+
+    Seen from the framed camera (above the floor, in front of the photo), a floor reaching in
+    front of the photo plane was drawn over the photo's bottom and across the colour bar (both
+    in front of it in depth, under the floor's height on screen). Behind the plane, every
+    floor line hidden by the opaque photo stays hidden, and the colour bar (lower than the
+    floor, in front of the plane) is never crossed.
+
+    Args:
+        scene: the viser scene (``server.scene``).
+        left, right: world x of the floor's ends, metres.
+    """
+    return scene.add_grid(
+        "/floor",
+        width=float(right - left),
+        height=FLOOR_DEPTH,
+        plane="xz",
+        position=((left + right) / 2, FLOOR_HEIGHT, -FLOOR_DEPTH / 2),
+        cell_color=(215, 215, 215),
+        section_color=(180, 180, 180),
+    )
+
+
+def clip_segments(segments: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Clip 2D line segments to the photo rectangle (Liang-Barsky).
+
+    Args:
+        segments: ``(..., 2, 2)`` segment end points in photo pixels.
+        size: ``(width, height)`` of the photo, pixels.
+
+    Returns:
+        ``(..., 2, 2)`` the parts inside ``[0, width] x [0, height]``; a segment entirely
+        outside collapses to a point on the rectangle's border (drawn as nothing).
+    """
+    points = np.asarray(segments, dtype=np.float64)
+    start, delta = points[..., 0, :], points[..., 1, :] - points[..., 0, :]
+    bounds = np.array(size, dtype=np.float64)
+    enter = np.zeros(start.shape[:-1])
+    leave = np.ones(start.shape[:-1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for axis in range(2):
+            d, p = delta[..., axis], start[..., axis]
+            low, high = (0.0 - p) / d, (bounds[axis] - p) / d
+            near, far = np.minimum(low, high), np.maximum(low, high)
+            parallel = d == 0
+            inside = (p >= 0) & (p <= bounds[axis])
+            near = np.where(parallel, np.where(inside, -np.inf, np.inf), near)
+            far = np.where(parallel, np.where(inside, np.inf, -np.inf), far)
+            enter, leave = np.maximum(enter, near), np.minimum(leave, far)
+    leave = np.maximum(leave, enter)  # outside: both ends at one point
+    clipped = np.stack([start + enter[..., None] * delta, start + leave[..., None] * delta], -2)
+    return np.clip(clipped, 0.0, bounds)

@@ -350,3 +350,90 @@ def test_the_status_says_which_distribution_and_whether_it_was_read_upright() ->
         fallback_reason=None, conditioned=False, upright_tilt_degrees=None, mirror_read=True
     )
     assert "mirror image" in source_text(mirrored) and "mirror" not in source_text(lying)
+
+
+def change_ratio(app, parts: tuple[str, ...]) -> float:
+    values = part_uncertainty(app.view.change_ratio, app.double.body.part_labels.numpy())
+    return float(np.mean([values[p] for p in parts]))
+
+
+def test_the_change_colouring_shows_an_occluded_foot_against_the_same_photo_without_it(app):
+    predictions = app.double.calls
+    assert app.set_display_options(True, True, True, 10.0, "change")
+    assert app.wait_idle(30)
+    # No occluder: the view is its own baseline (same seed and sample count): ratio 1.
+    np.testing.assert_allclose(app.view.change_ratio, 1.0, rtol=1e-5)
+    assert app.scene.legend_scale.kind == "change"
+    ankle = app.double.scene.keypoints2d[COCO.index("right_ankle")]
+    assert app.add_occluder((ankle[0] - 20, ankle[1] - 20, ankle[0] + 20, ankle[1] + 20))
+    assert app.wait_idle(30)
+    assert change_ratio(app, ("right_ankle", "right_foot")) > 1.5
+    assert change_ratio(app, ("left_ankle", "left_foot")) == pytest.approx(1.0, abs=0.25)
+    # The baseline was the first prediction of this photo: one new prediction (the occluder).
+    assert app.double.calls == predictions + 1
+    # The colours follow the ratio: the hidden foot is redder than the other one.
+    colours = app.scene._heat_points.colors.astype(float)
+    labels = app.double.body.part_labels.numpy()
+    red = colours[:, 0] - colours[:, 2]
+    assert red[labels == 8].mean() > red[labels == 7].mean() + 40  # right vs left ankle
+    app.clear_occluders()
+    assert app.set_display_options(True, True, True, 10.0, "log")
+    assert app.wait_idle(30)
+    assert app.scene.legend_scale.kind == "log"
+
+
+def test_the_change_colouring_predicts_a_missing_baseline_once(app):
+    ankle = app.double.scene.keypoints2d[COCO.index("right_ankle")]
+    app.add_occluder((ankle[0] - 20, ankle[1] - 20, ankle[0] + 20, ankle[1] + 20))
+    app.set_person_box((5.0, 5.0, *app.state.image_size))  # a new person box, occluded
+    assert app.wait_idle(30)
+    predictions = app.double.calls
+    app.set_display_options(True, True, True, 10.0, "change")
+    assert app.wait_idle(30)
+    assert app.double.calls == predictions + 1  # the baseline of the new box
+    # > 1: the baseline was predicted without the occluder (with it, the ratio would be 1).
+    assert change_ratio(app, ("right_ankle", "right_foot")) > 1.5
+    app.sampling_changed(app.state.set_joint_exponent("left_hip", -1.0))
+    assert app.wait_idle(30)
+    assert app.double.calls == predictions + 1  # cached: no prediction for a slider
+    assert change_ratio(app, ("left_knee",)) > 2.0  # the concentration change shows too
+    app.sampling_changed(app.state.reset_concentrations())
+    app.clear_occluders()
+    app.set_person_box(None)
+    app.set_display_options(True, True, True, 10.0, "log")
+    assert app.wait_idle(30)
+
+
+def test_the_floor_is_behind_the_photo_and_the_colour_bar(app):
+    """Seen from the framed camera a floor in front of the photo plane was drawn over the
+    photo's bottom and across the colour bar: it must lie behind both, right of the photo."""
+    from hkpd.explorer.scene import FLOOR_HEIGHT, LEGEND_HEIGHT, LEGEND_SIZE_M, LEGEND_Z
+
+    floor = app.server.scene._handle_from_node_name["/floor"]
+    placement = app.scene.placement
+    front = floor.position[2] + floor.height / 2
+    assert front <= 0.0 < LEGEND_Z  # photo plane z = 0, colour bar in front of it
+    assert floor.position[0] - floor.width / 2 >= placement.centre[0] - placement.width_m / 2
+    assert LEGEND_HEIGHT + LEGEND_SIZE_M[1] / 2 < FLOOR_HEIGHT  # the bar is under the floor
+
+
+def test_reprojected_skeletons_stay_on_the_photo(app):
+    from hkpd.explorer.scene import clip_segments
+
+    segments = app.server.scene._handle_from_node_name["/photo/reprojection"].points
+    placement = app.scene.placement
+    half = np.array([placement.width_m, placement.height_m]) / 2 + 1e-6
+    assert np.all(np.abs(segments[..., :2]) <= half)
+    clipped = clip_segments(np.array([[[-50.0, 10.0], [50.0, 10.0]], [[-9, -9], [-1, -1]]]),
+                            (20, 30))  # fmt: skip
+    np.testing.assert_allclose(clipped[0], [[0.0, 10.0], [20.0, 10.0]])
+    np.testing.assert_allclose(clipped[1, 0], clipped[1, 1])  # outside: nothing drawn
+
+
+def test_the_joint_label_is_under_the_mode_body_not_on_the_uncertainty_body(app):
+    from hkpd.explorer.scene import HEATMAP_OFFSET
+
+    label = app.server.scene._handle_from_node_name["/joint_axes_label"]
+    lowest = -app.view.mode_vertices[:, 1].max()  # body frame y down -> world
+    assert label.position[1] < lowest and abs(label.position[0]) < HEATMAP_OFFSET / 4
+    assert "left elbow" in label.text and "_" not in label.text

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import viser
 
-from hkpd.explorer.panels import ExplorerPanels, build_panels
+from hkpd.explorer.colour_map import COLOURINGS
+from hkpd.explorer.panels import ExplorerPanels, build_panels, teaching
 from hkpd.explorer.state import ExplorerState
 from hkpd.kinematic_tree import body_joint_index
 
@@ -55,9 +56,13 @@ class RecordingActions:
     def show_fit(self, visible: bool, opacity: float) -> None:
         self.calls.append(("show_fit", visible, opacity))
 
-    def set_display_options(self, samples, heatmap, reprojection, heatmap_max_cm) -> bool:
-        self.calls.append(("set_display_options", samples, heatmap, reprojection, heatmap_max_cm))
-        return heatmap_max_cm != 10.0
+    def set_display_options(
+        self, samples, heatmap, reprojection, heatmap_max_cm, colouring="log"
+    ) -> bool:
+        self.calls.append(
+            ("set_display_options", samples, heatmap, reprojection, heatmap_max_cm, colouring)
+        )
+        return heatmap_max_cm != 10.0 or colouring != "log"
 
     def load_upload(self, name, content, client) -> None:
         self.calls.append(("load_upload", name, content))
@@ -98,7 +103,7 @@ def test_the_defaults_come_from_the_state(built) -> None:
     assert panels.photo.evidence.value is True and not panels.photo.people.visible
     assert panels.samples.num_samples.value == actions.state.num_samples == 100
     assert panels.samples.num_displayed.value == 10 and panels.samples.seed.value == 0
-    assert panels.teaching.joint.value == "left_elbow"
+    assert panels.teaching.joint.value == "left elbow"  # the menu shows names, not identifiers
     assert len(panels.concentration.joint_sliders) == 23
     assert panels.status.line.content == "Starting…"
     assert sorted(panels.export.meshes) == ["glb", "ply"]
@@ -112,6 +117,10 @@ def test_concentration_sliders_change_the_state_and_reset_puts_them_back(built) 
     concentration.shape_slider.value = 0.5
     snapshot = actions.state.snapshot()
     assert snapshot.joint_exponents[body_joint_index("left_elbow")] == -0.5
+    # The labels show the factor (a slider at 0 is 1×, not "0").
+    assert concentration.joint_sliders["left_elbow"].label == "left elbow · 0.32×"
+    assert concentration.joint_sliders["right_knee"].label == "right knee · 1×"
+    assert concentration.shape_slider.label == "Shape spread · 3.2×"
     assert snapshot.global_exponent == 0.25 and snapshot.shape_std_exponent == 0.5
     assert actions.named("sampling_changed") == [(True,)] * 3
     actions.calls.clear()
@@ -120,6 +129,7 @@ def test_concentration_sliders_change_the_state_and_reset_puts_them_back(built) 
     assert not any(snapshot.joint_exponents) and snapshot.global_exponent == 0.0
     assert concentration.joint_sliders["left_elbow"].value == 0.0
     assert concentration.shape_slider.value == 0.0
+    assert concentration.joint_sliders["left_elbow"].label == "left elbow · 1×"
     assert actions.named("sampling_changed")[-1] == (True,)
 
 
@@ -132,11 +142,18 @@ def test_sample_controls_and_display_switches_reach_the_app(built) -> None:
     click(samples.resample)
     assert actions.state.seed == 8 and samples.seed.value == 8
     legend = samples.legend.image.copy()
+    assert not samples.heat_max.visible  # the log scale (default) has no top to move
+    samples.colouring.value = COLOURINGS["linear"]
+    assert samples.heat_max.visible
     samples.heat_max.value = 20.0
-    assert actions.named("set_display_options")[-1] == (True, True, True, 20.0)
+    assert actions.named("set_display_options")[-1] == (True, True, True, 20.0, "linear")
     assert not np.array_equal(samples.legend.image, legend)  # the colour bar was redrawn
     samples.show_samples.value = False
-    assert actions.named("set_display_options")[-1] == (False, True, True, 20.0)
+    assert actions.named("set_display_options")[-1] == (False, True, True, 20.0, "linear")
+    linear = samples.legend.image.copy()
+    samples.colouring.value = COLOURINGS["change"]
+    assert actions.named("set_display_options")[-1][-1] == "change"
+    assert not samples.heat_max.visible and not np.array_equal(samples.legend.image, linear)
     samples.fit_opacity.value = 0.3
     assert actions.named("show_fit")[-1] == (True, 0.3)
 
@@ -191,11 +208,19 @@ def test_each_occluder_has_working_controls(built) -> None:
 
 def test_teaching_export_and_same_person(built) -> None:
     panels, actions = built
-    panels.teaching.joint.value = "right_knee"
+    assert "right knee" in panels.teaching.joint.options
+    assert not any("_" in option for option in panels.teaching.joint.options)
+    panels.teaching.joint.value = "right knee"
     assert actions.state.selected_joint == "right_knee"
     panels.teaching.show_teaching("right_knee", np.array([1234.5, 20.0, 3.0]), 2.0, [5, 1, 3])
     table = panels.teaching.axes_text.content
     assert "**right knee** (factor 2×)" in table and "| red | 1,234.5 | 1.0 |" in table
+    assert "*network (sorted)*: the network's own concentrations" in table  # explained
+    panels.teaching.show_teaching("right_knee", np.array([4.0, 2.0, 1.0]), 1.0)
+    assert "network (sorted)" not in panels.teaching.axes_text.content
+    help_text = teaching.EXPLANATION
+    assert "white dots" not in help_text and "green" in help_text and "red" in help_text
+    assert "adds the keypoints' evidence" not in help_text and "Laplace" in help_text
     panels.teaching.show_proxy(None)
     assert not panels.teaching.proxy_edges.visible
     click(panels.export.meshes["ply"])

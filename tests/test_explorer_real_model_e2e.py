@@ -32,6 +32,7 @@ from test_explorer_e2e import (
     wait_for,
 )
 
+from hkpd.explorer.photo_geometry import quaternion_to_matrix
 from hkpd.explorer.posterior_view import part_uncertainty
 from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS
 
@@ -40,6 +41,40 @@ def limb(app, name: str) -> float:
     labels = app.result.posterior.body.part_labels.cpu().numpy()
     parts = part_uncertainty(app.view.uncertainty, labels)
     return float(np.mean([parts[p] for p in LIMB_SEGMENT_PARTS[name]]))
+
+
+def world_to_canvas(app, world: np.ndarray) -> np.ndarray:
+    """World points ``(N, 3)`` to canvas pixels, through the browser's current camera."""
+    camera = next(iter(app.server.get_clients().values())).camera
+    in_camera = (world - camera.position) @ quaternion_to_matrix(camera.wxyz)
+    tan_v = np.tan(camera.fov / 2)
+    u = (in_camera[:, 0] / in_camera[:, 2] / (tan_v * camera.aspect) + 1) / 2
+    v = (in_camera[:, 1] / in_camera[:, 2] / tan_v + 1) / 2
+    return np.stack([u * camera.image_width, v * camera.image_height], axis=1)
+
+
+def screenshot(page) -> np.ndarray:
+    return np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+
+
+def floor_pixels_over(app, page, rects: list[np.ndarray]) -> list[float]:
+    """Fraction of pixels inside each canvas rectangle (``(2, 2)`` corners, shrunk by 3 px for
+    the edges' antialiasing) that change when the floor grid is hidden: 0 when no grid line is
+    drawn over it."""
+    floor = app.server.scene._handle_from_node_name["/floor"]
+    shots = []
+    for visible in (True, False):
+        floor.visible = visible
+        time.sleep(2.5)  # software WebGL: a frame takes about a second
+        shots.append(screenshot(page))
+    floor.visible = True
+    changed = np.abs(shots[0] - shots[1]).max(axis=-1) > 40
+    fractions = []
+    for rect in rects:
+        (x0, y0), (x1, y1) = np.ceil(rect.min(0)).astype(int) + 3, rect.max(0).astype(int) - 3
+        x0, y0 = max(x0, 0), max(y0, 0)
+        fractions.append(float(changed[y0:y1, x0:x1].mean()))
+    return fractions
 
 
 @pytest.fixture(scope="module")
@@ -70,6 +105,20 @@ def test_shipped_model_on_the_shipped_photo(app, tmp_path):
         assert posterior.source == "evidence", posterior.fallback_reason
         assert "/photo/fit" in app.server.scene._handle_from_node_name  # the fit overlay
         before = {name: limb(app, name) for name in ("right_lower_leg", "left_lower_leg")}
+
+        # No floor grid over the photo or across the colour bar (issue 42: white lines across
+        # the photo's bottom and the bar's labels).
+        from hkpd.explorer.scene import HEATMAP_OFFSET, LEGEND_HEIGHT, LEGEND_SIZE_M, LEGEND_Z
+
+        placement = app.scene.placement
+        photo_rect = photo_to_canvas(
+            app, np.array([[0.0, 0.0], [placement.width_px, placement.height_px]])
+        )
+        half_w, half_h = LEGEND_SIZE_M[0] / 2, LEGEND_SIZE_M[1] / 2
+        bar = np.array([[HEATMAP_OFFSET - half_w, LEGEND_HEIGHT + half_h, LEGEND_Z],
+                        [HEATMAP_OFFSET + half_w, LEGEND_HEIGHT - half_h, LEGEND_Z]])  # fmt: skip
+        over_photo, over_bar = floor_pixels_over(app, page, [photo_rect, world_to_canvas(app, bar)])
+        assert over_photo < 0.001 and over_bar < 0.001, (over_photo, over_bar)
 
         # Shift + drag a box over the right shin (knee to ankle, with a margin).
         knee, ankle = posterior.keypoints[14].numpy(), posterior.keypoints[16].numpy()

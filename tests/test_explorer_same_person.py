@@ -112,6 +112,36 @@ def test_the_combination_follows_the_current_photos_prediction(app):
     assert app.wait_idle(60)
 
 
+def world_box(app, frame: str, mesh: str) -> np.ndarray:
+    """``(2, 3)`` world min and max of a body drawn in a turned frame (body y down -> up)."""
+    handles = app.server.scene._handle_from_node_name
+    vertices = handles[mesh].vertices * np.array([1.0, -1.0, -1.0]) + handles[frame].position
+    return np.stack([vertices.min(axis=0), vertices.max(axis=0)])
+
+
+def test_the_combined_body_is_drawn_at_scale_beside_the_others_without_overlaps(app):
+    handles = app.server.scene._handle_from_node_name
+    combined = world_box(app, "/combined", "/combined/base")
+    heat = world_box(app, "/heat", "/heat/base")
+    mode = world_box(app, "/body", "/body/mode")
+    tpose = app.combined_shape.tpose_vertices.numpy()
+    # Scale 1, like the other bodies: its drawn height is the T-pose's own (metres).
+    np.testing.assert_allclose(combined[1] - combined[0], np.ptp(tpose, axis=0), rtol=1e-5)
+    assert 1.0 < combined[1, 1] - combined[0, 1] < 2.2  # a person's height, not twice it
+    # Side by side, apart: the three bodies' x ranges do not overlap.
+    assert mode[1, 0] < heat[0, 0] and heat[1, 0] < combined[0, 0]
+    # Its title sits in the row of the column titles, above every body.
+    title = handles["/combined_title"]
+    assert title.position[1] == pytest.approx(app.scene.titles_top)
+    assert title.position[1] > max(combined[1, 1], heat[1, 1], mode[1, 1])
+    assert "std" not in title.text  # short, like the other titles (the panel gives the std)
+    # Its own colour bar under its feet, beside (not on) the uncertainty body's.
+    legend = handles["/combined_legend"]
+    assert legend.position[1] < combined[0, 1]
+    bar = handles["/legend"]
+    assert legend.position[0] - bar.position[0] >= legend.render_width
+
+
 def test_photos_that_cannot_be_added_say_why_and_change_nothing(app):
     client = RecordingClient()
     count = app.combined_shape.count

@@ -4,6 +4,8 @@ uploads and exports. No browser and no server."""
 from __future__ import annotations
 
 import io
+import subprocess
+import sys
 import threading
 import time
 
@@ -12,7 +14,12 @@ import pytest
 import trimesh
 from PIL import Image
 
-from hkpd.explorer.colour_map import legend_image, uncertainty_colours
+from hkpd.explorer.colour_map import (
+    HeatmapScale,
+    change_colours,
+    legend_image,
+    uncertainty_colours,
+)
 from hkpd.explorer.export import meshes_file, png_bytes
 from hkpd.explorer.photo_geometry import (
     HALF_TURN_ABOUT_X,
@@ -229,6 +236,26 @@ def test_uncertainty_colours_match_hkpd_predict_and_saturate():
     assert legend.shape == (64, 320, 3) and legend.std() > 20
 
 
+def test_the_log_scale_keeps_chain_ends_apart_and_the_change_map_diverges():
+    # The shipped photo's range (2.5 .. 22.5 cm): distinct colours, none at the top colour.
+    values_m = np.array([0.025, 0.067, 0.15, 0.225])
+    log = HeatmapScale("log").colours(values_m)
+    assert len({tuple(c) for c in log}) == 4
+    top = HeatmapScale("log").colours(np.array([1.0]))[0]
+    assert not any(np.array_equal(c, top) for c in log)
+    linear = HeatmapScale("linear", 10.0).colours(values_m)
+    np.testing.assert_array_equal(linear[2], linear[3])  # the old linear scale saturates
+    change = change_colours(np.array([1 / 3, 0.7, 1.0, 1.5, 3.0, 10.0]))
+    assert abs(int(change[2, 0]) - int(change[2, 2])) < 10  # 1x: neutral grey
+    assert change[3, 0] > change[3, 2] + 30 and change[1, 2] > change[1, 0] + 20  # red / blue
+    np.testing.assert_array_equal(change[4], change[5])  # saturates at 3x
+    legends = [HeatmapScale(kind).legend() for kind in ("log", "linear", "change")]
+    assert all(legend.shape == (64, 320, 3) for legend in legends)
+    assert not np.array_equal(legends[0], legends[2])
+    with pytest.raises(ValueError, match="unknown colouring"):
+        HeatmapScale("rainbow")
+
+
 # ---------------------------------------------------------------------------- uploads / export
 def _png(width: int, height: int) -> bytes:
     buffer = io.BytesIO()
@@ -264,3 +291,29 @@ def test_mesh_export_round_trips_through_trimesh():
         meshes_file(vertices, samples, faces, "obj")
     png = png_bytes(np.zeros((4, 5, 3), np.uint8))
     assert png.startswith(b"\x89PNG")
+
+
+SCIPY_FREE_EXPORT = """
+import io, sys
+sys.modules["scipy"] = None  # the README's main install has no scipy (only the dev extra)
+import numpy as np, trimesh
+from hkpd.explorer.export import MODE_RGBA, meshes_file
+vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float32)
+faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+glb = meshes_file(vertices, vertices[None] + 0.1, faces, "glb")
+scene = trimesh.load(io.BytesIO(glb), file_type="glb")
+mode = scene.geometry["mode"]
+assert tuple(mode.visual.vertex_colors[0]) == MODE_RGBA, mode.visual.vertex_colors[0]
+meshes_file(vertices, vertices[None] + 0.1, faces, "ply")
+print("exported", len(glb))
+"""
+
+
+def test_mesh_export_needs_no_scipy():
+    """GLB and PLY export work where scipy cannot be imported (trimesh's face colours need
+    scipy.sparse; the explorer writes vertex colours)."""
+    done = subprocess.run(
+        [sys.executable, "-c", SCIPY_FREE_EXPORT], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.startswith("exported")

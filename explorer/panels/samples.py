@@ -1,5 +1,6 @@
 """The distribution tab's "Samples" folder: how many samples and meshes, the seed, what is
-drawn, and the uncertainty colour scale."""
+drawn, and how the uncertainty body is coloured (absolute on a log or linear scale, or the
+change against the same photo without occluders)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from typing import Protocol
 
 import viser
 
-from hkpd.explorer.colour_map import DEFAULT_MAX_CM, legend_image
+from hkpd.explorer.colour_map import COLOURINGS, DEFAULT_MAX_CM, HeatmapScale
 from hkpd.explorer.panels.actions import StateActions
 from hkpd.explorer.state import MAX_DISPLAYED_SAMPLES, MAX_SAMPLES
 
@@ -23,9 +24,15 @@ class SamplesActions(StateActions, Protocol):
         ...
 
     def set_display_options(
-        self, samples: bool, heatmap: bool, reprojection: bool, heatmap_max_cm: float
+        self,
+        samples: bool,
+        heatmap: bool,
+        reprojection: bool,
+        heatmap_max_cm: float,
+        colouring: str = "log",
     ) -> bool:
-        """Which parts are drawn and the colour scale's top; True if the scale changed."""
+        """Which parts are drawn, the colouring (a key of :data:`COLOURINGS`) and the linear
+        scale's top; True if the colour scale changed."""
         ...
 
 
@@ -40,7 +47,8 @@ class SamplesSection:
         resample: "Resample" (moves the seed on).
         show_samples, show_heatmap, show_reprojection, show_fit: display switches.
         fit_opacity: opacity of the fit over the photo.
-        heat_max: top of the colour scale, centimetres.
+        colouring: how the uncertainty body is coloured (labels of :data:`COLOURINGS`).
+        heat_max: top of the linear colour scale, centimetres.
         legend: the colour bar.
     """
 
@@ -53,8 +61,15 @@ class SamplesSection:
     show_reprojection: viser.GuiCheckboxHandle
     show_fit: viser.GuiCheckboxHandle
     fit_opacity: viser.GuiSliderHandle
+    colouring: viser.GuiDropdownHandle[str]
     heat_max: viser.GuiSliderHandle
     legend: viser.GuiImageHandle
+
+    @property
+    def scale(self) -> HeatmapScale:
+        """The colouring chosen in the panel."""
+        kind = next(k for k, label in COLOURINGS.items() if label == self.colouring.value)
+        return HeatmapScale(kind, float(self.heat_max.value))
 
 
 def build_samples_section(gui: viser.GuiApi, actions: SamplesActions) -> SamplesSection:
@@ -79,11 +94,20 @@ def build_samples_section(gui: viser.GuiApi, actions: SamplesActions) -> Samples
             hint="The most likely body drawn over the person with the predicted camera",
         )
         fit_opacity = gui.add_slider("Fit opacity", 0.0, 1.0, 0.05, DEFAULT_FIT_OPACITY)
-        heat_max = gui.add_slider("Colour scale top (cm)", 2.0, 40.0, 1.0, DEFAULT_MAX_CM)
-        legend = gui.add_image(legend_image(DEFAULT_MAX_CM), label="Uncertainty")
+        colouring = gui.add_dropdown(
+            "Colouring",
+            tuple(COLOURINGS.values()),
+            initial_value=COLOURINGS["log"],
+            hint="Change: each vertex's uncertainty divided by its uncertainty on the same "
+            "photo without occluders and with default concentrations (red: more uncertain)",
+        )
+        heat_max = gui.add_slider(
+            "Linear scale top (cm)", 2.0, 40.0, 1.0, DEFAULT_MAX_CM, visible=False
+        )
+        legend = gui.add_image(HeatmapScale().legend(), label="Colour bar")
     section = SamplesSection(
-        num_samples, num_displayed, seed, resample, *switches, show_fit, fit_opacity, heat_max,
-        legend,
+        num_samples, num_displayed, seed, resample, *switches, show_fit, fit_opacity, colouring,
+        heat_max, legend,
     )  # fmt: skip
     _wire(section, actions)
     return section
@@ -105,7 +129,8 @@ def _wire(section: SamplesSection, actions: SamplesActions) -> None:
             lambda _: actions.show_fit(section.show_fit.value, section.fit_opacity.value)
         )
     for control in (
-        section.show_samples, section.show_heatmap, section.show_reprojection, section.heat_max
+        section.show_samples, section.show_heatmap, section.show_reprojection, section.colouring,
+        section.heat_max,
     ):  # fmt: skip
         control.on_update(lambda _: _display_options(section, actions))
 
@@ -116,9 +141,11 @@ def _resample(section: SamplesSection, actions: SamplesActions) -> None:
 
 
 def _display_options(section: SamplesSection, actions: SamplesActions) -> None:
-    top = float(section.heat_max.value)
+    scale = section.scale
+    section.heat_max.visible = scale.kind == "linear"
     rescaled = actions.set_display_options(
-        section.show_samples.value, section.show_heatmap.value, section.show_reprojection.value, top
-    )
+        section.show_samples.value, section.show_heatmap.value, section.show_reprojection.value,
+        scale.max_cm, scale.kind,
+    )  # fmt: skip
     if rescaled:
-        section.legend.image = legend_image(top)
+        section.legend.image = scale.legend()

@@ -15,26 +15,58 @@ from hkpd.kinematic_tree import BODY_JOINT_NAMES
 AXIS_NAMES = ("red", "green", "blue")
 """The principal axes' arrow colours in the scene, in order."""
 
+NETWORK_COLUMN_NOTE = """
+
+*network (sorted)*: the network's own concentrations for this joint, before conditioning on
+the keypoints, smallest first. Its principal axes are not the conditioned ones (the fit turns
+them), so its numbers are listed in order of size rather than beside an arrow. Conditioning
+re-centres the distribution and takes the curvature at the new most likely pose, so a number
+can be lower than the network's (see *What am I looking at?*)."""
+
 EXPLANATION = """\
 **What you are looking at.** The photo (left) goes through the network, which predicts a
 *probability distribution* over 3D bodies, not one body. By default that distribution is then
-*conditioned on the 2D keypoints* the detector found (white dots): the network's distribution
-is the prior, the keypoints are the evidence. The solid body is the most likely one (the mode);
-the ghosts are samples from the distribution; the body on the right is coloured by how far its
-vertices move across 100 samples (dark purple: certain, yellow: uncertain; the colour bar gives
-centimetres).
+*conditioned on the 2D keypoints* the detector found (the dots on the photo: green where the
+detector is confident, red where it is not): the network's distribution is the prior, the
+keypoints are the evidence. The solid body is the most likely one (the mode); the ghosts are
+samples from the distribution; the orange and blue lines on the photo are the mode's and the
+samples' skeletons projected back onto it. The body on the right is coloured by how far its
+vertices move across the samples (dark purple: certain, yellow: uncertain; log scale, the
+colour bar gives centimetres). *Colouring: Change* shows instead each vertex's uncertainty
+divided by its uncertainty on the same photo without occluders and with default
+concentrations (grey: unchanged, red: more uncertain, blue: less).
 
 **Try it.** Shift + drag on the photo to hide part of the person behind a box: the keypoints
 under it stop counting as evidence, the joints that moved the hidden part fall back to the
-network's (wider) prior, and their limb spreads out and turns yellow. Untick *Condition on 2D
-keypoints* to see the network alone. The sliders scale each joint's *concentration* by hand.
+network's (wider) prior, and their limb spreads out and turns red in the change colouring.
+Untick *Condition on 2D keypoints* to see the network alone. The sliders scale each joint's
+*concentration* by hand (their labels show the factor).
 
 **The maths.** Each joint's rotation relative to its parent follows a matrix-Fisher
 distribution with parameter F = U S V&#x1D40;. The arrows at the selected joint are its principal
 axes; the numbers are the concentrations s&#x2C7C; + s&#x2096; for rotations about each axis:
-large means confident. Conditioning adds the keypoints' evidence to the network's F (Teaching:
-*network* vs *with evidence*).
+large means confident. Conditioning does not simply add the keypoints' evidence to the
+network's F: the fit moves the most likely pose to where the network's prior and the keypoints
+agree best, and the conditioned concentrations are the curvature of that combined log-density
+at the new mode (a Laplace approximation). Where the new mode sits away from the network's, on
+the flank of its prior, the prior's curvature there is smaller than at its peak, so a
+conditioned concentration can be LOWER than the network's about some axes (the table above
+shows both).
 """
+
+
+JOINT_LABELS = tuple(name.replace("_", " ") for name in BODY_JOINT_NAMES)
+"""The Joint menu's entries ("left elbow"), in :data:`BODY_JOINT_NAMES` order."""
+
+
+def joint_label(name: str) -> str:
+    """The Joint menu's entry of a body-joint name (``left_elbow`` -> ``left elbow``)."""
+    return JOINT_LABELS[BODY_JOINT_NAMES.index(name)]
+
+
+def joint_name(label: str) -> str:
+    """The body-joint name of a Joint menu entry (``left elbow`` -> ``left_elbow``)."""
+    return BODY_JOINT_NAMES[JOINT_LABELS.index(label)]
 
 
 @dataclass(frozen=True)
@@ -71,17 +103,19 @@ class TeachingSection:
         """
         title = f"**{joint.replace('_', ' ')}** (factor {factor:.2g}×): concentration "
         title += "s&#x2C7C; + s&#x2096; about each principal axis"
+        note = ""
         if prior_concentrations is None:
             header = "| axis | concentration |\n|---|---|"
             columns = [concentrations]
         else:
             header = "| axis | with evidence | network (sorted) |\n|---|---|---|"
             columns = [concentrations, sorted(np.asarray(prior_concentrations, float).tolist())]
+            note = NETWORK_COLUMN_NOTE
         rows = [
             "| " + " | ".join([name, *(f"{float(value):,.1f}" for value in values)]) + " |"
             for name, *values in zip(AXIS_NAMES, *columns, strict=True)
         ]
-        self.axes_text.content = f"{title}\n\n{header}\n" + "\n".join(rows)
+        self.axes_text.content = f"{title}\n\n{header}\n" + "\n".join(rows) + note
 
     def show_proxy(self, proxy: torch.Tensor | None) -> None:
         """The proxy representation the network saw (``(18, S, S)``: the edge image, then the
@@ -102,12 +136,14 @@ def build_teaching_section(gui: viser.GuiApi, actions: StateActions) -> Teaching
     """The "Teaching" folder, wired to ``actions``."""
     with gui.add_folder("Teaching"):
         joint = gui.add_dropdown(
-            "Joint", BODY_JOINT_NAMES, initial_value=actions.state.selected_joint
+            "Joint", JOINT_LABELS, initial_value=joint_label(actions.state.selected_joint)
         )
         axes_text = gui.add_markdown("")
         proxy_edges = gui.add_image(np.zeros((64, 64, 3), np.uint8), label="Edges")
         proxy_heat = gui.add_image(np.zeros((64, 64, 3), np.uint8), label="Heatmaps")
         with gui.add_folder("What am I looking at?", expand_by_default=False):
             gui.add_markdown(EXPLANATION)
-    joint.on_update(lambda _: actions.sampling_changed(actions.state.select_joint(joint.value)))
+    joint.on_update(
+        lambda _: actions.sampling_changed(actions.state.select_joint(joint_name(joint.value)))
+    )
     return TeachingSection(joint, axes_text, proxy_edges, proxy_heat)
