@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+from PIL import Image
 
 from hkpd.prediction.detection.boxes import box_iou
 from hkpd.prediction.detection.keypoint_detector import (
@@ -120,14 +121,17 @@ def matched(listed: list[KeypointDetection], annotated: list[Annotated]) -> list
 
 
 def in_box_failure(detector: KeypointDetector, photo: Path, box: np.ndarray) -> str | None:
-    """None when the front end, asked for the person in ``box``, takes that person; else
+    """None when the front end, asked for the person in ``box`` (as it is, and in whole pixels
+    as the explorer passes it on), takes that person; else
     ``"nobody"`` (no person found, or the box refused) or ``"another person"``."""
-    try:
-        prepared = prepare_network_input(str(photo), detector, bbox=box)
-    except (NoPersonFoundError, ValueError):
-        return "nobody"
-    if box_iou(prepared.detection.person_box, box) < SAME_PERSON_IOU:
-        return "another person"
+    width, height = Image.open(photo).size
+    for search in (box, np.round(np.clip(box, 0, [width, height, width, height]))):
+        try:
+            prepared = prepare_network_input(str(photo), detector, bbox=search)
+        except (NoPersonFoundError, ValueError):
+            return "nobody"
+        if box_iou(prepared.detection.person_box, box) < SAME_PERSON_IOU:
+            return "another person"
     return None
 
 

@@ -277,8 +277,9 @@ class KeypointDetector:
         - its landmarks pass the presence and confidence checks;
         - it is not a person listed already (overlapping landmark boxes, or the same
           keypoints: a person found twice, e.g. whole and as an upper body, is listed once);
-        - :meth:`detect` in its ``person_box`` takes the same person (landmark boxes overlapping
-          by :data:`SAME_PERSON_IOU`): whoever is listed can be predicted in their box.
+        - :meth:`detect` in its ``person_box`` (as it is, and rounded to whole pixels) takes the
+          same person (landmark boxes overlapping by :data:`SAME_PERSON_IOU`): whoever is
+          listed can be predicted in their box.
 
         The list is empty when nobody is found (no exception). ``seconds`` of each is the time
         of the grid search.
@@ -318,12 +319,20 @@ class KeypointDetector:
         return [detection for detection in detections if detection is not None]
 
     def _confirmed(self, loaded: LoadedImage, detection: KeypointDetection) -> bool:
-        """Whether :meth:`detect` in ``detection.person_box`` takes that person."""
+        """Whether :meth:`detect` in ``detection.person_box`` takes that person, the box given
+        exactly or in whole pixels (as the explorer passes it on)."""
+        box = detection.person_box
+        width, height = loaded.original_size
+        whole = np.round(np.clip(box, 0, [width, height, width, height]))
+        return all(self._takes(loaded, search, box) for search in (box, whole))
+
+    def _takes(self, loaded: LoadedImage, search_box: np.ndarray, person_box: np.ndarray) -> bool:
+        """Whether :meth:`detect` inside ``search_box`` takes the person of ``person_box``."""
         try:
-            again = self._detect_in_box(loaded, detection.person_box)
+            again = self._detect_in_box(loaded, validated_box(search_box, loaded.original_size))
         except (NoPersonFoundError, ValueError):
             return False
-        return box_iou(again.person_box, detection.person_box) >= SAME_PERSON_IOU
+        return box_iou(again.person_box, person_box) >= SAME_PERSON_IOU
 
     def landmarks33(
         self,
