@@ -423,12 +423,12 @@ class ExplorerApp:
             self._notify(each, "No person found", advice.replace("**", ""), error=True)
 
     def _place_photo(self, image: np.ndarray, placement: PhotoPlacement, token: int) -> None:
-        """Draw photo ``token`` at ``placement``, frame it, and list its people once."""
-        if token != self._people_token:
-            self._find_people(image, token)
+        """Draw photo ``token`` at ``placement``, frame it, then list its people (once)."""
         self.scene.place_photo(image, placement)
         self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
         self._frame_camera(placement)
+        if token != self._people_token:
+            self._find_people(image, token)
 
     def _image_job(self, image: np.ndarray, name: str, client: viser.ClientHandle | None) -> None:
         started = time.perf_counter()
