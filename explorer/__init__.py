@@ -21,9 +21,9 @@ Modules: ``state`` (app state), ``worker`` (coalescing background worker), ``pro
 ``posterior_view`` (samples, heatmap, joint axes), ``scene`` (the viser scene), ``panels``
 (the GUI: one builder per section, arranged in tabs by ``panels.build_panels``), ``app``
 (wiring), ``photo_geometry``, ``colour_map`` (the colourings and their colour bars),
-``change_baseline`` (the change colouring's baseline per photo and person), ``upload``, ``export``, ``demo_photo`` (the
-shipped photo), ``demo_scene`` (the synthetic scene) and ``cli``. Names below are imported
-lazily so that ``import hkpd.explorer`` does not start viser.
+``change_baseline`` (the change colouring's baseline per photo and person), ``upload``,
+``export``, ``demo_photo`` (the shipped photo), ``demo_scene`` (the synthetic scene) and
+``cli``. Names below are imported lazily so that ``import hkpd.explorer`` does not start viser.
 """
 
 from __future__ import annotations

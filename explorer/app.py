@@ -41,6 +41,7 @@ from hkpd.explorer.state import (
     MAX_SAME_PERSON_PHOTOS,
     ExplorerState,
     StateSnapshot,
+    clamp_box,
 )
 from hkpd.explorer.upload import UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
@@ -64,6 +65,10 @@ PANEL_WIDTH_PX = 420
 BODY_HALF_SPAN_M = 0.95
 """Half the arm span the framing leaves room for right of the uncertainty body's centre
 (outstretched arms reach ~0.85 m), so its hand never goes under the panel."""
+PLAIN_PHOTO_HEIGHT_M = 2.0
+"""Height of a photo drawn before any person was found in it (a person-sized photo)."""
+WEAK_EVIDENCE_KEYPOINTS = 6
+"""Fewer keypoints of evidence than this in a person box: :func:`weak_keypoints_warning`."""
 SCREENSHOT_SIZE = (720, 1280)
 """``(height, width)`` of the screenshot requested from the browser."""
 
@@ -121,6 +126,8 @@ class ExplorerApp:
         self._same_person_queue: list[tuple[np.ndarray, str, viser.ClientHandle | None, int]] = []
         self._combined: CombinedShape | None = None
         self._people: tuple[Box, ...] = ()
+        self._people_token = -1
+        self._photo_is_plain = False
         lanes = ("image", "predict", "sample", "same_person", "export")
         self.worker = CoalescingWorker(lanes, self._job_failed)
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
@@ -204,8 +211,18 @@ class ExplorerApp:
         changed = self.state.set_person_box(box)
         if changed:
             self.scene.show_person_box(self.state.snapshot().person_box)
+            self._show_person_menu()
             self.worker.submit("predict", self._predict_job)
         return changed
+
+    def _show_person_menu(self) -> None:
+        """The Person menu for the photo's people, naming whom the person box holds: one of
+        them, or a box the user picked ("Your box")."""
+        people, box = self.people, self.state.snapshot().person_box
+        width, height = self.state.image_size
+        listed = [clamp_box(person, width, height) for person in people]
+        choice = 0 if box is None else listed.index(box) if box in listed else None
+        self.panels.photo.show_people(len(people), choice)
 
     @property
     def people(self) -> tuple[Box, ...]:
@@ -375,7 +392,7 @@ class ExplorerApp:
                 image, snapshot.active_boxes, evidence=snapshot.evidence, bbox=snapshot.person_box
             )
         except NoPersonFoundError:
-            self._no_person()
+            self._no_person(image, token)
             return
         self.timings.predict = time.perf_counter() - started
         key = BaselineKey(token, snapshot.person_box, snapshot.evidence)
@@ -393,34 +410,52 @@ class ExplorerApp:
         with self._lock:
             if token != self._image_token:
                 return
-            self._people = people
-        self.panels.photo.show_people(len(people))
+            self._people, self._people_token = people, token
+        self._show_person_menu()
 
-    def _no_person(self, client: viser.ClientHandle | None = None) -> None:
-        """Tell every tab (or ``client``) how to point at the person."""
+    def _no_person(
+        self, image: np.ndarray, token: int, client: viser.ClientHandle | None = None
+    ) -> None:
+        """Nobody found on photo ``token``: clear the last person's body, draw the photo (so that
+        a box can be dragged on it) and tell every tab (or ``client``) how to pick the person."""
+        with self._lock:
+            if token != self._image_token:
+                return  # a newer photo replaced this one meanwhile
+            self._result, self._view, self._overlay = None, None, None
+            new_photo = token != self._placed_token
+            self._placed_token = token
+            self._photo_is_plain = self._photo_is_plain or new_photo
+        self.scene.clear_bodies()
+        if new_photo:
+            self._place_photo(image, plain_placement(image.shape[1], image.shape[0]), token)
+        self.scene.show_occluders(self.state.snapshot().occluders)
+        self.scene.show_person_box(self.state.snapshot().person_box)
+        self.panels.status.source.content = ""
         advice = (
             "No person was found. Click **Pick the person**, then drag a box around them on "
-            "the photo (or start hkpd-explore with --bbox x0 y0 x1 y1)."
+            "the photo."
         )
         self.panels.status.show_status(f"**{advice}**")
         clients = [client] if client is not None else self.server.get_clients().values()
         for each in clients:
             self._notify(each, "No person found", advice.replace("**", ""), error=True)
 
+    def _place_photo(self, image: np.ndarray, placement: PhotoPlacement, token: int) -> None:
+        """Draw photo ``token`` at ``placement``, frame it, then list its people (once)."""
+        self.scene.place_photo(image, placement)
+        self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
+        self._frame_camera(placement)
+        if token != self._people_token:
+            self._find_people(image, token)
+
     def _image_job(self, image: np.ndarray, name: str, client: viser.ClientHandle | None) -> None:
         started = time.perf_counter()
         snapshot = self.state.snapshot()
+        result: PredictionResult | None = None
         try:
             result = self.provider.predict(image, [], evidence=snapshot.evidence)
         except NoPersonFoundError:
-            self._notify(
-                client,
-                "Photo not loaded",
-                f"{name}: no person found. To use it anyway, a person box is needed: start "
-                "hkpd-explore on it with --bbox x0 y0 x1 y1.",
-                error=True,
-            )
-            return
+            pass  # the photo is shown all the same: the user picks the person on it
         except Exception as error:  # the predictor's own message says what is wrong
             self._notify(client, "Photo not loaded", f"{name}: {error}", error=True)
             return
@@ -433,6 +468,10 @@ class ExplorerApp:
         snapshot = self.state.snapshot()
         self.panels.photo.occluders.show(snapshot.occluders, snapshot.image_size)
         self.scene.show_person_box(None)
+        if result is None:
+            self._notify(client, "Photo loaded", name)
+            self._no_person(image, token, client)
+            return
         self._show_prediction(result, image, token, BaselineKey(token, None, snapshot.evidence))
         self._notify(client, "Photo loaded", name)
 
@@ -452,16 +491,18 @@ class ExplorerApp:
             self._result, self._result_key = result, key
             new_photo = token != self._placed_token
             self._placed_token = token
+            plain, self._photo_is_plain = self._photo_is_plain, False
         if without_occluders:
             self.baselines.record(key, result.posterior)
         posterior = result.posterior
-        if new_photo:
-            self._find_people(image, token)
-            placement = photo_placement(result, image.shape[1], image.shape[0])
-            self.scene.place_photo(image, placement)
-            self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
-            self._frame_camera(placement)
+        if new_photo or plain:
+            self._place_photo(image, photo_placement(result, image.shape[1], image.shape[0]), token)
+            self.scene.show_person_box(self.state.snapshot().person_box)
         self.scene.show_occluders(self.state.snapshot().occluders)
+        warning = weak_keypoints_warning(posterior)
+        if warning is not None:
+            for client in self.server.get_clients().values():
+                self._notify(client, "Weak keypoints", warning.replace("**", ""), error=True)
         overlay = _fit_overlay(posterior)
         with self._lock:
             self._overlay = overlay
@@ -567,6 +608,9 @@ class ExplorerApp:
             view.axes.joint, view.axes.concentrations, joint_factor, prior_concentrations=prior
         )
         self.panels.status.show_source(result.posterior)
+        warning = weak_keypoints_warning(result.posterior)
+        if warning is not None:
+            self.panels.status.source.content += f"\n\n{warning}"
         self.panels.status.show_status(
             f"Prediction {self.timings.predict * 1000:.0f} ms · "
             f"{snapshot.num_samples} samples + heatmap {self.timings.sample * 1000:.0f} ms · "
@@ -703,6 +747,38 @@ def photo_placement(result: PredictionResult, width: int, height: int) -> PhotoP
     width_m = height_m * width / height
     centre_x = -(PHOTO_GAP + width_m / 2)
     return PhotoPlacement(width, height, (centre_x, float(centre_y), 0.0), height_m)
+
+
+def plain_placement(width: int, height: int) -> PhotoPlacement:
+    """Where a photo without a found person goes: :data:`PLAIN_PHOTO_HEIGHT_M` tall, its
+    bottom on the floor, left of the bodies (replaced once a person is predicted)."""
+    width_m = PLAIN_PHOTO_HEIGHT_M * width / height
+    centre = (-(PHOTO_GAP + width_m / 2), PLAIN_PHOTO_HEIGHT_M / 2 - 1.0, 0.0)
+    return PhotoPlacement(width, height, centre, PLAIN_PHOTO_HEIGHT_M)
+
+
+def weak_keypoints_warning(posterior: object) -> str | None:
+    """A warning (markdown) when the person box the keypoints were read in may hold no person:
+    the person detector found nobody there (the landmark model read the box itself), or fewer
+    than :data:`WEAK_EVIDENCE_KEYPOINTS` keypoints are evidence; None otherwise, and for a
+    posterior without a detection (a custom provider's)."""
+    network_input = getattr(posterior, "network_input", None)
+    detection = getattr(network_input, "detection", None)
+    if detection is None or detection.search_box is None:
+        return None
+    shown = int(np.asarray(network_input.evidence).sum())
+    confidence = float(np.mean(detection.confidences))
+    if detection.detector_score is not None and shown >= WEAK_EVIDENCE_KEYPOINTS:
+        return None
+    why = (
+        "the person detector found nobody in the box"
+        if detection.detector_score is None
+        else f"only {shown} keypoints are evidence"
+    )
+    return (
+        f"**Weak keypoints:** {why} ({shown} of 17 keypoints confident enough, mean confidence "
+        f"{confidence:.2f}); the box may not hold a person."
+    )
 
 
 def _fit_overlay(posterior) -> FitOverlay | None:

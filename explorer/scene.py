@@ -59,6 +59,16 @@ OVERLAY_LIFT = -0.004
 """Local z of drawings on the photo (negative: towards the viewer)."""
 
 
+BODY_DRAWINGS = (
+    "/body/joint_axes",
+    "/body/joint_axes_label",
+    "/photo/keypoints",
+    "/photo/reprojection",
+)
+"""Scene nodes of one person's prediction that are added by name (see
+:meth:`ExplorerScene.clear_bodies`)."""
+
+
 class ExplorerScene:
     """Creates and updates the scene nodes. Thread-safe (one lock around every update).
 
@@ -351,6 +361,22 @@ class ExplorerScene:
             self._update_heatmap(view)
             self._update_axes(view)
             self._update_reprojection(view)
+
+    def clear_bodies(self) -> None:
+        """Remove the bodies, the heatmap, the joint axes and the keypoints, reprojections and
+        fit drawn on the photo (nobody was found: nothing of the last person may stay)."""
+        with self._lock, self.server.atomic():
+            self._drop_meshes()
+            if self._heat_points is not None:
+                self._heat_points.remove()
+                self._heat_points = None
+            if self._fit_node is not None:
+                self._fit_node.remove()
+                self._fit_node = None
+            for name in BODY_DRAWINGS:  # added by name (re-adding replaces): remove by name
+                handle = self.server.scene._handle_from_node_name.get(name)
+                if handle is not None:
+                    handle.remove()
 
     def _drop_meshes(self) -> None:
         for handle in [*self._samples, self._mode, self._heat_base]:

@@ -10,6 +10,7 @@ import viser
 
 from hkpd.explorer.colour_map import COLOURINGS
 from hkpd.explorer.panels import ExplorerPanels, build_panels, teaching
+from hkpd.explorer.panels.photo import PICKED_CHOICE
 from hkpd.explorer.state import ExplorerState
 from hkpd.kinematic_tree import body_joint_index
 
@@ -178,6 +179,14 @@ def test_photo_controls_and_the_person_menu(built) -> None:
     assert actions.named("select_person") == [(2,)]
     photo.show_people(1)
     assert not photo.people.visible and actions.named("select_person") == [(2,)]
+    photo.show_people(3, None)  # a box the user picked: the menu says so, not "Person 3 of 3"
+    assert photo.people.value == PICKED_CHOICE and photo.people.visible
+    assert len(photo.people.options) == 4 and photo.chosen_person() is None
+    photo.show_people(3, 1)
+    assert photo.people.value.startswith("Person 2 of 3")
+    photo.show_people(0, None)
+    assert not photo.people.visible
+    assert actions.named("select_person") == [(2,)]
 
 
 def test_each_occluder_has_working_controls(built) -> None:

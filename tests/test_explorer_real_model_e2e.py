@@ -3,7 +3,8 @@
 What a new user sees: the default photo (a kneeling lunge), the evidence posterior, the fit
 drawn over the person. Shift + drag a box over the right shin: that shin's keypoints stop
 counting, its uncertainty rises and the other leg's stays put; loading another photo takes the
-box away; a photo without a person says how to pick one. Skipped like ``test_explorer_e2e``
+box away; a photo without a person is drawn, clears the old body, and a box dragged on it
+picks the person. Skipped like ``test_explorer_e2e``
 without playwright or Debian's chromium (never in CI).
 
 Set ``HKPD_UPDATE_FIGURES=1`` to write ``docs/figures/explorer_screenshot.png`` from this run.
@@ -32,6 +33,7 @@ from test_explorer_e2e import (
     wait_for,
 )
 
+from hkpd.explorer.panels.photo import PICKED_CHOICE
 from hkpd.explorer.photo_geometry import quaternion_to_matrix
 from hkpd.explorer.posterior_view import part_uncertainty
 from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS
@@ -143,14 +145,29 @@ def test_shipped_model_on_the_shipped_photo(app, tmp_path):
         time.sleep(3.0)
         shot = page.screenshot()
 
-        # A photo without a person: the app says how to pick one, and drops the old box.
+        # A photo without a person: it is loaded and drawn, the old body is cleared, the app
+        # says how to pick the person, and a box dragged on the photo picks them.
         blank = io.BytesIO()
         Image.fromarray(np.full((360, 540, 3), 128, np.uint8)).save(blank, format="PNG")
         upload = page.locator("input[type=file]").first
         upload.set_input_files(
             files=[{"name": "empty.png", "mimeType": "image/png", "buffer": blank.getvalue()}]
         )
-        page.get_by_text("Photo not loaded").wait_for(timeout=30_000)
+        page.get_by_text("No person found").first.wait_for(timeout=30_000)
+        nodes = app.server.scene._handle_from_node_name
+        wait_for(lambda: app.scene.placement.width_px == 540, what="the person-less photo")
+        assert app.wait_idle(60) and app.state.image_size == (540, 360)
+        assert app.view is None and "/body/mode" not in nodes and "/photo" in nodes
+        camera_settled(app)  # framed on the new photo: let the browser apply it
+        page.get_by_role("button", name="Pick the person").click()
+        wait_for(lambda: "Drag a box" in app.panels.status.line.content, what="picking")
+        corners = photo_to_canvas(app, np.array([[150.0, 40.0], [390.0, 330.0]]))
+        shift_drag(page, corners[0], corners[1])
+        wait_for(lambda: app.state.snapshot().person_box is not None, what="the picked box")
+        assert app.wait_idle(60) and not app.state.snapshot().occluders
+        picked = app.state.snapshot().person_box
+        np.testing.assert_allclose(picked, [150, 40, 390, 330], atol=6.0)
+        assert app.panels.photo.people.value == PICKED_CHOICE
         browser.close()
     image = np.asarray(Image.open(io.BytesIO(shot)).convert("RGB"))
     assert image[:, : int(0.68 * image.shape[1])].std() > 25

@@ -236,24 +236,6 @@ def test_a_box_the_detector_finds_nobody_in_is_still_read_by_the_landmark_model(
     assert found.detector_score is None
 
 
-def test_detect_all_returns_one_detection_per_person() -> None:
-    class TwoPeople(MarkerFindingRunner):
-        def find_people(self, pixels):
-            left = Region(np.array([100.0, 100.0]), 50.0, 0.0)
-            right = Region(np.array([600.0, 300.0]), 50.0, 0.0)
-            box = np.zeros(4)
-            return [
-                PersonCandidate(0.9, box, np.zeros((4, 2)), left),
-                PersonCandidate(0.7, box, np.zeros((4, 2)), right),
-            ]
-
-    found = KeypointDetector(runner=TwoPeople()).detect_all(marker_photo(), tiles=1)
-    assert [d.detector_score for d in found] == [0.9, 0.7]
-    np.testing.assert_allclose(found[0].keypoints[0], [100.0, 100.0])
-    np.testing.assert_allclose(found[1].keypoints[0], [600.0, 300.0])
-    assert KeypointDetector(runner=NobodyRunner()).detect_all(marker_photo()) == []
-
-
 class BlobRunner(MarkerFindingRunner):
     """Finds a person only where the part it is shown holds one whole white blob (as a small
     person is found in a part of a photo, not in the whole); landmarks spread over the blob."""
@@ -272,6 +254,44 @@ class BlobRunner(MarkerFindingRunner):
         return PoseLandmarks(region.centre + spread, np.full(33, 0.9), 0.99, region, None)
 
 
+class TwoBlobRunner(BlobRunner):
+    """Finds every blob of the part it is shown (blobs lie 40+ pixels apart in u), scored by
+    its brightness (255: 0.9), the best first."""
+
+    def find_people(self, pixels):
+        self.calls += 1
+        ys, xs = np.nonzero(pixels[:, :, 0] > 100)
+        if xs.size == 0:
+            return []
+        order = np.argsort(xs)
+        cuts = np.flatnonzero(np.diff(xs[order]) > 40) + 1
+        people = []
+        for part in np.split(order, cuts):
+            centre = np.array([xs[part].mean(), ys[part].mean()])
+            score = 0.9 * pixels[ys[part[0]], xs[part[0]], 0] / 255
+            box = np.r_[centre - 5, centre + 5]
+            people.append(
+                PersonCandidate(score, box, np.tile(centre, (4, 1)), Region(centre, 20.0, 0.0))
+            )
+        return sorted(people, key=lambda person: -person.score)
+
+
+def two_blob_photo() -> np.ndarray:
+    """600 x 300 photo: a bright blob around (59.5, 49.5), a dimmer one around (529.5, 239.5)."""
+    photo = np.zeros((300, 600, 3), np.uint8)
+    photo[40:60, 50:70] = 255
+    photo[230:250, 520:540] = 200
+    return photo
+
+
+def test_detect_all_returns_one_detection_per_person() -> None:
+    found = KeypointDetector(runner=TwoBlobRunner()).detect_all(two_blob_photo(), tiles=1)
+    assert [d.detector_score for d in found] == pytest.approx([0.9, 0.9 * 200 / 255])
+    np.testing.assert_allclose(found[0].keypoints[0], [59.5 - 8, 49.5 - 12])
+    np.testing.assert_allclose(found[1].keypoints[0], [529.5 - 8, 239.5 - 12])
+    assert KeypointDetector(runner=NobodyRunner()).detect_all(marker_photo()) == []
+
+
 def test_detect_all_searches_parts_of_the_photo_and_keeps_each_person_once() -> None:
     photo = np.zeros((300, 600, 3), np.uint8)
     photo[40:60, 50:70] = 255  # two small people far apart: the whole photo shows two blobs
@@ -279,7 +299,8 @@ def test_detect_all_searches_parts_of_the_photo_and_keeps_each_person_once() -> 
     runner = BlobRunner()
     assert KeypointDetector(runner=runner).detect_all(photo, tiles=1) == []
     found = KeypointDetector(runner=runner).detect_all(photo)
-    assert runner.calls == 1 + 1 + 9  # the whole photo (twice), then the 3 x 3 parts
+    # The whole photo (twice), then the 3 x 3 parts, then each person again in their box.
+    assert runner.calls == 1 + 1 + 9 + 2
     centres = sorted(tuple(np.round((d.person_box[:2] + d.person_box[2:]) / 2, 1)) for d in found)
     assert centres == [(59.5, 49.5), (529.5, 239.5)]  # each once, in photo pixels
 

@@ -21,7 +21,7 @@ from hkpd.camera_conventions import CROP_SIZE
 from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.detection.keypoint_detector import KeypointDetection, KeypointDetector
 from hkpd.prediction.detection.person_mask import PersonMask
-from hkpd.prediction.evidence_rule import NO_OCCLUDERS, evidence_mask
+from hkpd.prediction.evidence_rule import NO_OCCLUDERS, evidence_frame, evidence_mask
 from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
 from hkpd.prediction.occluders import OccluderBoxes, Occluders, apply_occluders
 from hkpd.proxy import DEFAULT_IMAGE_PROXY, build_proxy
@@ -96,8 +96,9 @@ def prepare_network_input(
 
     The detector runs on the *unpainted* photo; occluders are then painted before edge
     extraction, and the keypoints that are not evidence
-    (:func:`hkpd.prediction.evidence_rule.evidence_mask`: below the confidence threshold or
-    under an occluder) get confidence 0, so the heatmaps show exactly the evidence. (Detecting
+    (:func:`hkpd.prediction.evidence_rule.evidence_mask`: below the confidence threshold,
+    outside the photo or the searched box, or under an occluder) get confidence 0, so the
+    heatmaps show exactly the evidence. (Detecting
     on the painted photo let BlazePose put confident keypoints just outside a box.) Without
     occluders nothing changes.
 
@@ -131,7 +132,8 @@ def prepare_network_input(
     detection = detector.detect(loaded, bbox=bbox)  # the unpainted photo (see the docstring)
     if len(occluders):
         loaded = apply_occluders(loaded, occluders)
-    evidence = evidence_mask(detection.keypoints, detection.confidences, occluders)
+    frame = evidence_frame(detection.image_size, detection.search_box)
+    evidence = evidence_mask(detection.keypoints, detection.confidences, occluders, frame=frame)
     confidences = np.where(evidence, detection.confidences, 0.0)
     crop = CropTransform.from_keypoints(
         detection.keypoints, detection.confidences, image_size=detection.image_size, size=crop_size

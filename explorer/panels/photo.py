@@ -11,6 +11,8 @@ import viser
 from hkpd.explorer.panels.occluder_list import OccluderActions, OccluderList
 
 NO_PERSON_CHOICE = "(one person)"
+PICKED_CHOICE = "Your box (picked on the photo)"
+"""The Person menu's entry while the person box is one the user dragged, not a listed person."""
 
 
 class PhotoActions(OccluderActions, Protocol):
@@ -76,21 +78,33 @@ class PhotoSection:
     _offering: bool = field(default=False, repr=False)
     """True while :meth:`show_people` sets the menu (that is not the user's choice)."""
 
-    def show_people(self, count: int) -> None:
-        """Offer a choice of person when the photo shows several (hidden otherwise)."""
-        choices = tuple(person_choice(i, count) for i in range(count)) or (NO_PERSON_CHOICE,)
+    def show_people(self, count: int, choice: int | None = 0) -> None:
+        """Offer a choice of person when the photo shows several (hidden otherwise).
+
+        Args:
+            count: the people listed.
+            choice: the 0-based person whose body is shown, or None while the person box is
+                one the user picked (the menu then says :data:`PICKED_CHOICE`, and is shown
+                when at least one person is listed, to go back to them).
+        """
+        choices = tuple(person_choice(i, count) for i in range(count))
+        if choice is None:
+            choices += (PICKED_CHOICE,)
+            value = PICKED_CHOICE
+        else:
+            value = choices[choice] if count >= 2 and 0 <= choice < count else NO_PERSON_CHOICE
         self._offering = True
         try:
-            self.people.options = choices
-            self.people.value = NO_PERSON_CHOICE if count < 2 else choices[0]
-            self.people.visible = count >= 2
+            self.people.options = choices or (NO_PERSON_CHOICE,)
+            self.people.value = value
+            self.people.visible = count >= 2 or (choice is None and count >= 1)
         finally:
             self._offering = False
 
     def chosen_person(self) -> int | None:
         """The 0-based person the user chose in the menu, or None (no choice, or the app set
         the menu)."""
-        if self._offering or self.people.value == NO_PERSON_CHOICE:
+        if self._offering or self.people.value in (NO_PERSON_CHOICE, PICKED_CHOICE):
             return None
         return int(self.people.value.split()[1]) - 1
 
@@ -120,7 +134,8 @@ def build_photo_section(gui: viser.GuiApi, actions: PhotoActions) -> PhotoSectio
             "Person",
             (NO_PERSON_CHOICE,),
             visible=False,
-            hint="Several people were found: choose whose body to estimate",
+            hint="The people found in the photo: choose whose body to estimate (a box you "
+            "pick with 'Pick the person' is listed as 'Your box')",
         )
         gui.add_markdown("*Shift + drag on the photo draws an occluder.*")
         draw_mode = gui.add_checkbox(

@@ -36,10 +36,15 @@ def validated_box(bbox: Sequence[float] | np.ndarray, image_size: tuple[int, int
     width, height = image_size
     if x1 <= 0 or y1 <= 0 or x0 >= width or y0 >= height:
         raise ValueError(
-            f"bbox {tuple(box)} lies outside the {width}x{height} photo; give it in pixels of "
+            f"bbox {_shown(box)} lies outside the {width}x{height} photo; give it in pixels of "
             "the original photo as displayed (x0, y0, x1, y1)"
         )
     return box
+
+
+def _shown(box: np.ndarray) -> str:
+    """``(x0, y0, x1, y1)`` as the user would write it (``(0, -40.5, 1080, 0)``)."""
+    return "(" + ", ".join(f"{float(v):g}" for v in box) + ")"
 
 
 def search_region(loaded: LoadedImage, box: np.ndarray) -> tuple[int, int, int, int]:
@@ -57,7 +62,7 @@ def search_region(loaded: LoadedImage, box: np.ndarray) -> tuple[int, int, int, 
     x1, y1 = np.clip(np.ceil(edges[1]), 0, [width, height]).astype(int)
     if min(x1 - x0, y1 - y0) < MIN_SEARCH_REGION:
         raise ValueError(
-            f"bbox {tuple(box)} covers only {x1 - x0}x{y1 - y0} pixels of the photo; draw a "
+            f"bbox {_shown(box)} covers only {x1 - x0}x{y1 - y0} pixels of the photo; draw a "
             "box around the whole person"
         )
     return int(x0), int(y0), int(x1), int(y1)
@@ -73,7 +78,7 @@ def clipped_box(points: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
 
 def no_person_message(loaded: LoadedImage, search_box: np.ndarray | None) -> str:
     """What to tell the user when no person was found (in the photo or inside ``search_box``)."""
-    where = "in the photo" if search_box is None else f"inside bbox {tuple(search_box)}"
+    where = "in the photo" if search_box is None else f"inside bbox {_shown(search_box)}"
     hint = (
         "pass --bbox x0,y0,x1,y1 around the person (several people, or a small person)"
         if search_box is None

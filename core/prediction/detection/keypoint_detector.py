@@ -56,6 +56,7 @@ __all__ = [
     "KeypointDetector",
     "NoPersonFoundError",
     "PoseRunner",
+    "same_person",
 ]
 
 COCO_FROM_BLAZEPOSE = (0, 2, 5, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24, 25, 26, 27, 28)
@@ -70,6 +71,14 @@ grid; about 0.2 s a photo)."""
 SAME_PERSON_IOU = 0.5
 """Two detections whose landmark boxes overlap this much (intersection over union) are one
 person found twice (on the whole photo and in a part, or in two parts)."""
+
+SAME_KEYPOINTS_DISTANCE = 0.1
+"""Two detections whose keypoints confident in both lie within this fraction of the smaller
+landmark box's longer side of each other (median) are one person found twice, however their
+boxes overlap (e.g. the whole person and their upper body alone)."""
+
+SAME_KEYPOINTS_MIN = 3
+"""Keypoints confident in both detections needed to compare their keypoints."""
 
 MIN_CONFIDENT_KEYPOINTS = 4
 """A detection with fewer COCO keypoints of confidence >= :data:`CONFIDENT_VISIBILITY` counts as
@@ -198,25 +207,51 @@ class KeypointDetector:
             ImageInputError: ``image`` could not be loaded.
         """
         loaded = load_image(image)
-        region = (0, 0, *loaded.size)
-        search_box = None
-        if bbox is not None:
-            search_box = validated_box(bbox, loaded.original_size)
-            region = search_region(loaded, search_box)
-        x0, y0, x1, y1 = region
-        pixels = np.ascontiguousarray(loaded.pixels[y0:y1, x0:x1])
+        if bbox is None:
+            return self._detect_whole_photo(loaded)
+        return self._detect_in_box(loaded, validated_box(bbox, loaded.original_size))
 
+    def _detect_whole_photo(self, loaded: LoadedImage) -> KeypointDetection:
+        """The detector's best person on the whole photo; when it finds nobody there (or too
+        few confident keypoints), the first person of :meth:`detect_all` (the Person menu's
+        grid search), so that both give one answer."""
+        with self._lock:
+            runner = self._pose_runner()
+            start = time.perf_counter()
+            people = runner.find_people(loaded.pixels)
+            found = None
+            if people:
+                found = runner.landmarks(loaded.pixels, people[0].region, self.segmentation)
+            seconds = time.perf_counter() - start
+        score = people[0].score if people else None
+        detection = (
+            None if found is None else _to_detection(found, loaded, (0, 0), None, seconds, score)
+        )
+        if detection is not None:
+            return detection
+        listed = self.detect_all(loaded)
+        if listed:
+            return listed[0]
+        raise NoPersonFoundError(
+            no_person_message(loaded, None)
+            + (
+                ""
+                if found is None
+                else f" (a pose was found but fewer than "
+                f"{MIN_CONFIDENT_KEYPOINTS} keypoints were visible with confidence)"
+            )
+        )
+
+    def _detect_in_box(self, loaded: LoadedImage, search_box: np.ndarray) -> KeypointDetection:
+        """The detector's best person inside the checked ``search_box`` (original pixels)."""
+        x0, y0, x1, y1 = search_region(loaded, search_box)
+        pixels = np.ascontiguousarray(loaded.pixels[y0:y1, x0:x1])
         with self._lock:
             runner = self._pose_runner()
             start = time.perf_counter()
             people = runner.find_people(pixels)
             score: float | None = people[0].score if people else None
-            if people:
-                look_at = people[0].region
-            elif search_box is not None:
-                look_at = _box_region(x1 - x0, y1 - y0)
-            else:
-                raise NoPersonFoundError(no_person_message(loaded, search_box))
+            look_at = people[0].region if people else _box_region(x1 - x0, y1 - y0)
             found = runner.landmarks(pixels, look_at, self.segmentation)
             seconds = time.perf_counter() - start
         detection = _to_detection(found, loaded, (x0, y0), search_box, seconds, score)
@@ -231,20 +266,39 @@ class KeypointDetector:
     def detect_all(
         self, image: LoadedImage | np.ndarray | str, tiles: int = DETECT_ALL_TILES
     ) -> list[KeypointDetection]:
-        """One detection per person the detector finds, the whole photo's people first.
+        """One detection per person found, the whole photo's people first: the Person menu.
 
         BlazePose's detector sees the photo at 224 × 224 pixels, where people in a group photo
         are often too small to find; it therefore also looks at a ``tiles × tiles`` grid of
         overlapping parts of the photo (:func:`tile_bounds`; ``tiles=1``: the whole photo
-        only). Candidates are taken whole-photo first, then by score; one whose landmarks'
-        box overlaps an earlier person's by :data:`SAME_PERSON_IOU` or more is that person.
-        People whose landmarks fail the presence or confidence checks are left out; the list is
-        empty when nobody is found (no exception). ``seconds`` of each is the time of all.
+        only). Candidates are taken whole-photo first, then by score. A candidate is listed
+        only when (:func:`same_person`, :meth:`_confirmed`):
+
+        - its landmarks pass the presence and confidence checks;
+        - it is not a person listed already (overlapping landmark boxes, or the same
+          keypoints: a person found twice, e.g. whole and as an upper body, is listed once);
+        - :meth:`detect` in its ``person_box`` (as it is, and rounded to whole pixels) takes the
+          same person (landmark boxes overlapping by :data:`SAME_PERSON_IOU`): whoever is
+          listed can be predicted in their box.
+
+        The list is empty when nobody is found (no exception). ``seconds`` of each is the time
+        of the grid search.
 
         Raises:
             ImageInputError: ``image`` could not be loaded.
         """
         loaded = load_image(image)
+        listed: list[KeypointDetection] = []
+        for detection in self._grid_candidates(loaded, tiles):
+            if any(same_person(detection, other) for other in listed):
+                continue
+            if self._confirmed(loaded, detection):
+                listed.append(detection)
+        return listed
+
+    def _grid_candidates(self, loaded: LoadedImage, tiles: int) -> list[KeypointDetection]:
+        """Every candidate of the whole photo and the grid whose landmarks pass the checks,
+        whole photo first, then by score (duplicates included)."""
         width, height = loaded.size
         with self._lock:
             runner = self._pose_runner()
@@ -258,15 +312,27 @@ class KeypointDetector:
             people = [candidate[2] for candidate in candidates]
             found = [runner.landmarks(loaded.pixels, p.region, self.segmentation) for p in people]
             seconds = time.perf_counter() - start
-        detections: list[KeypointDetection] = []
-        for landmarks, person in zip(found, people, strict=True):
-            detection = _to_detection(landmarks, loaded, (0, 0), None, seconds, person.score)
-            if detection is not None and all(
-                box_iou(detection.person_box, other.person_box) < SAME_PERSON_IOU
-                for other in detections
-            ):
-                detections.append(detection)
-        return detections
+        detections = [
+            _to_detection(landmarks, loaded, (0, 0), None, seconds, person.score)
+            for landmarks, person in zip(found, people, strict=True)
+        ]
+        return [detection for detection in detections if detection is not None]
+
+    def _confirmed(self, loaded: LoadedImage, detection: KeypointDetection) -> bool:
+        """Whether :meth:`detect` in ``detection.person_box`` takes that person, the box given
+        exactly or in whole pixels (as the explorer passes it on)."""
+        box = detection.person_box
+        width, height = loaded.original_size
+        whole = np.round(np.clip(box, 0, [width, height, width, height]))
+        return all(self._takes(loaded, search, box) for search in (box, whole))
+
+    def _takes(self, loaded: LoadedImage, search_box: np.ndarray, person_box: np.ndarray) -> bool:
+        """Whether :meth:`detect` inside ``search_box`` takes the person of ``person_box``."""
+        try:
+            again = self._detect_in_box(loaded, validated_box(search_box, loaded.original_size))
+        except (NoPersonFoundError, ValueError):
+            return False
+        return box_iou(again.person_box, person_box) >= SAME_PERSON_IOU
 
     def landmarks33(
         self,
@@ -294,6 +360,23 @@ class KeypointDetector:
             return None
         points = loaded.to_original(found.points + np.array([x0, y0], np.float64))
         return np.concatenate([points, found.visibility[:, None]], axis=1)
+
+
+def same_person(first: KeypointDetection, second: KeypointDetection) -> bool:
+    """Whether two detections are one person found twice: landmark boxes overlapping by
+    :data:`SAME_PERSON_IOU` or more, or at least :data:`SAME_KEYPOINTS_MIN` keypoints confident
+    in both lying, in the median, within :data:`SAME_KEYPOINTS_DISTANCE` of the smaller box's
+    longer side of each other."""
+    if box_iou(first.person_box, second.person_box) >= SAME_PERSON_IOU:
+        return True
+    shared = (first.confidences >= CONFIDENT_VISIBILITY) & (
+        second.confidences >= CONFIDENT_VISIBILITY
+    )
+    if int(shared.sum()) < SAME_KEYPOINTS_MIN:
+        return False
+    distance = np.linalg.norm(first.keypoints[shared] - second.keypoints[shared], axis=-1)
+    sides = [float((box[2:] - box[:2]).max()) for box in (first.person_box, second.person_box)]
+    return float(np.median(distance)) <= SAME_KEYPOINTS_DISTANCE * min(sides)
 
 
 def _box_region(width: int, height: int) -> Region:

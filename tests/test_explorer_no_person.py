@@ -1,0 +1,133 @@
+"""The explorer when nobody is found (issues 42 and 44), without a browser: the photo is drawn
+so that the person can be picked on it, the last person's body is cleared, the Person menu
+follows a picked box, and a person box holding no person gets a warning. The test double of the
+predictor (``test_explorer_double.py``) stands in for the model."""
+
+from __future__ import annotations
+
+import io
+from types import SimpleNamespace
+
+import numpy as np
+from PIL import Image
+from test_explorer_app import RecordingClient, TwoPeopleProvider
+from test_explorer_double import OcclusionAwareDouble
+
+from hkpd.explorer.app import ExplorerApp, weak_keypoints_warning
+from hkpd.explorer.panels.photo import PICKED_CHOICE
+from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
+
+
+def nodes(explorer: ExplorerApp) -> set[str]:
+    return set(explorer.server.scene._handle_from_node_name)
+
+
+class NobodyOutsideBoxes:
+    """The test double, except that nobody is found without a person box, nor in ``EMPTY``."""
+
+    EMPTY = (300.0, 10.0, 380.0, 100.0)
+
+    def __init__(self) -> None:
+        self.double = OcclusionAwareDouble()
+
+    def predict(self, image, occluders, evidence=True, bbox=None):
+        if bbox is None or tuple(bbox) == self.EMPTY:
+            raise NoPersonFoundError("photo: no person found")
+        return self.double.predict(image, occluders, evidence, bbox)
+
+    def find_people(self, image):
+        return []
+
+
+def test_a_photo_without_a_person_is_drawn_to_pick_the_person_on():
+    provider = NobodyOutsideBoxes()
+    explorer = ExplorerApp(provider, provider.double.scene.image, port=0)
+    try:
+        assert explorer.wait_idle(30)
+        assert explorer.scene.placement is not None and "/photo" in nodes(explorer)
+        assert explorer.view is None and "/body/mode" not in nodes(explorer)
+        assert "Pick the person" in explorer.panels.status.line.content
+        assert "--bbox" not in explorer.panels.status.line.content
+        explorer.pick_person_next()
+        assert explorer.set_person_box((20, 20, 300, 500))
+        assert explorer.wait_idle(30) and explorer.view is not None
+        assert "/body/mode" in nodes(explorer) and "/photo/person_box" in nodes(explorer)
+        assert not explorer.errors
+    finally:
+        explorer.stop()
+
+
+def test_nobody_in_a_new_box_clears_the_last_persons_body():
+    provider = NobodyOutsideBoxes()
+    explorer = ExplorerApp(provider, provider.double.scene.image, port=0)
+    try:
+        assert explorer.set_person_box((20, 20, 300, 500)) and explorer.wait_idle(30)
+        drawn = {"/body/mode", "/heat/points", "/photo/keypoints", "/photo/reprojection"}
+        assert drawn <= nodes(explorer) and explorer.view is not None
+        assert explorer.set_person_box(NobodyOutsideBoxes.EMPTY) and explorer.wait_idle(30)
+        assert not drawn & nodes(explorer)
+        assert explorer.view is None and explorer.result is None
+        assert "/photo" in nodes(explorer) and "No person was found" in (
+            explorer.panels.status.line.content
+        )
+    finally:
+        explorer.stop()
+
+
+def test_an_upload_without_a_person_is_loaded_and_drawn():
+    double = OcclusionAwareDouble()
+    provider = NobodyOutsideBoxes()
+    explorer = ExplorerApp(provider, double.scene.image, port=0, person_box=(20, 20, 300, 500))
+    try:
+        assert explorer.wait_idle(30) and explorer.view is not None
+        gradient = np.repeat(np.linspace(0, 255, 320, dtype=np.uint8)[None, :, None], 200, 0)
+        buffer = io.BytesIO()
+        Image.fromarray(np.repeat(gradient, 3, axis=2)).save(buffer, format="PNG")
+        client = RecordingClient()
+        explorer.load_upload("gradient.png", buffer.getvalue(), client)
+        assert explorer.wait_idle(30)
+        placement = explorer.scene.placement
+        assert (placement.width_px, placement.height_px) == (320, 200)
+        assert explorer.view is None and "/body/mode" not in nodes(explorer)
+        titles = [title for title, _ in client.notifications]
+        assert titles == ["Photo loaded", "No person found"]
+        assert "drag a box" in client.notifications[1][1] and "--bbox" not in str(titles)
+    finally:
+        explorer.stop()
+
+
+def test_the_person_menu_follows_a_picked_box():
+    provider = TwoPeopleProvider()
+    explorer = ExplorerApp(provider, provider.double.scene.image, port=0, num_displayed=2)
+    try:
+        assert explorer.wait_idle(60)
+        menu = explorer.panels.photo.people
+        assert explorer.select_person(1) and explorer.wait_idle(30)
+        assert menu.value.startswith("Person 2 of 2")
+        assert explorer.set_person_box((150.0, 40.0, 330.0, 460.0)) and explorer.wait_idle(30)
+        assert menu.value == PICKED_CHOICE and menu.visible
+        assert explorer.set_person_box(None) and explorer.wait_idle(30)
+        assert menu.value.startswith("Person 1 of 2")
+        assert not explorer.errors
+    finally:
+        explorer.stop()
+
+
+def posterior_with(detector_score: float | None, evidence: int, search_box=(0, 0, 10, 10)):
+    """Just what :func:`weak_keypoints_warning` reads of a posterior."""
+    detection = SimpleNamespace(
+        detector_score=detector_score,
+        search_box=None if search_box is None else np.array(search_box, float),
+        confidences=np.full(17, 0.4),
+    )
+    shown = np.arange(17) < evidence
+    return SimpleNamespace(network_input=SimpleNamespace(detection=detection, evidence=shown))
+
+
+def test_a_person_box_without_a_person_gets_a_weak_keypoints_warning():
+    warning = weak_keypoints_warning(posterior_with(None, 7))
+    assert "found nobody in the box" in warning and "7 of 17" in warning
+    assert "only 3 keypoints" in weak_keypoints_warning(posterior_with(0.9, 3))
+    assert weak_keypoints_warning(posterior_with(0.9, 12)) is None
+    assert weak_keypoints_warning(posterior_with(None, 7, search_box=None)) is None
+    assert weak_keypoints_warning(SimpleNamespace()) is None  # a custom provider's posterior
