@@ -28,6 +28,7 @@ Format 1 files (no checksum) and format 2 files (no evidence settings) still loa
 from __future__ import annotations
 
 import hashlib
+import math
 import random
 from pathlib import Path
 from typing import Any
@@ -292,19 +293,41 @@ def _check_weight_values(state: dict[str, torch.Tensor], path: Path | str) -> No
     for key, tensor in state.items():
         if not tensor.is_floating_point() or tensor.numel() == 0:
             continue
-        if not bool(torch.isfinite(tensor).all()):
-            what = "NaN" if bool(torch.isnan(tensor).any()) else "inf"
+        largest = _largest_magnitude(tensor)
+        if not math.isfinite(largest):
+            what = "NaN" if math.isnan(largest) else "inf"
             raise CheckpointError(
                 f"{path} holds non-finite weights ({what} in {key}), as a diverged training "
                 "run writes; use an earlier checkpoint"
             )
-        largest = float(tensor.abs().max())
         if largest > MAX_WEIGHT_MAGNITUDE:
             raise CheckpointError(
                 f"{path} holds weights larger than {MAX_WEIGHT_MAGNITUDE:g} in magnitude "
                 f"({largest:.3g} in {key}), as a diverged training run writes; use an earlier "
                 "checkpoint"
             )
+
+
+_SAME_SIZE_INTEGERS = {
+    torch.float16: torch.int16,
+    torch.bfloat16: torch.int16,
+    torch.float32: torch.int32,
+    torch.float64: torch.int64,
+}
+
+
+def _largest_magnitude(tensor: torch.Tensor) -> float:
+    """The largest ``|entry|`` of a float tensor: NaN if any entry is NaN, else inf if any is
+    infinite. Read from the bits (sign cleared, the largest pattern is the largest magnitude,
+    inf's above every finite one and NaN's above inf's): float16 arithmetic on the CPU took
+    1.6 s for the shipped file, this takes a few ms."""
+    integers = _SAME_SIZE_INTEGERS.get(tensor.dtype)
+    if integers is None:
+        return float(tensor.detach().double().abs().amax())
+    worst = (tensor.detach().view(integers) & torch.iinfo(integers).max).amax()
+    if worst > torch.tensor(math.inf, dtype=tensor.dtype).view(integers):
+        return math.nan
+    return float(worst.view(tensor.dtype))
 
 
 def _check_tensor_shapes(config: NetworkConfig, state: dict, path: Path | str) -> None:
