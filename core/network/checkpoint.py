@@ -23,6 +23,11 @@ A checkpoint is one ``torch.save`` file holding plain data only (loadable with
   predictor uses ``EvidenceConfig()``'s defaults |
 
 Format 1 files (no checksum) and format 2 files (no evidence settings) still load.
+
+:func:`read_checkpoint` trusts nothing in the file: the config is checked against the limits of
+:mod:`hkpd.network.config` and against the stored tensors' names and shapes before any network
+is built, and the weights must be finite and at most :data:`MAX_WEIGHT_MAGNITUDE`
+(``docs/network.md``, "Refused inputs: checkpoints").
 """
 
 from __future__ import annotations
@@ -197,7 +202,9 @@ def read_checkpoint(path: Path | str, map_location: str | torch.device = "cpu") 
 
     Raises:
         FileNotFoundError: no such file.
-        CheckpointError: not an hkpd checkpoint, or written by a newer format version.
+        CheckpointError: not an hkpd checkpoint, written by a newer format version, damaged
+            (checksum), a ``network_config`` out of the limits or not fitting the stored
+            tensors, or non-finite or diverged weights; one line naming the file.
     """
     path = Path(path)
     if not path.is_file():
