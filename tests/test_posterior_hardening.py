@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 import torch
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT
 from hkpd.distributions import BodyDistribution, KinematicMatrixFisher, MatrixFisher
-from hkpd.kinematic_tree import BODY_PARENTS
+from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS
 from hkpd.prediction.crop import CropTransform
-from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.posterior import MAX_CONCENTRATION, MAX_SHAPE_STD, BodyPosterior
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +74,60 @@ def test_half_precision_F_is_computed_in_float32(dtype) -> None:
     samples = distribution.sample((5,))
     assert samples.dtype == torch.float32 and torch.isfinite(samples).all()
     assert torch.isfinite(distribution.log_prob(samples)).all()
+
+
+@pytest.mark.parametrize(
+    "factor",
+    [2, 2.0, np.float32(2.0), np.float64(2.0), np.int64(2), np.array(2.0), np.array(2),
+     torch.tensor(2.0), torch.tensor(2), torch.tensor([2.0]), np.float16(2.0)],
+)  # fmt: skip
+def test_every_real_number_type_is_a_factor(posterior, factor) -> None:
+    torch.testing.assert_close(posterior.with_shape_std(factor).shape_std, posterior.shape_std * 2)
+    scaled = posterior.with_concentration("left_elbow", factor)
+    index = BODY_JOINT_NAMES.index("left_elbow")
+    torch.testing.assert_close(
+        scaled.pose_distribution.joints.S[0, index],
+        posterior.pose_distribution.joints.S[0, index] * 2,
+    )
+
+
+@pytest.mark.parametrize(
+    "factor",
+    [True, np.bool_(True), 2 + 0j, np.complex128(2.0), torch.tensor(True), torch.tensor(2 + 0j),
+     np.array([2.0, 3.0]), torch.tensor([2.0, 3.0]), "2", None],
+)  # fmt: skip
+def test_bools_complex_numbers_and_non_scalars_are_not_factors(posterior, factor) -> None:
+    with pytest.raises(TypeError, match="real number"):
+        posterior.with_shape_std(factor)
+    with pytest.raises(TypeError, match="real number"):
+        posterior.with_concentration(None, factor)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda p: p.with_shape_std(1e30),
+        lambda p: p.with_shape_std(1e300),
+        lambda p: p.with_shape_std(10**400),
+        lambda p: p.with_shape_std(np.float32(3e38)),
+        lambda p: p.with_concentration(None, 1e300),
+        lambda p: p.with_concentration("left_elbow", 1e40),
+        lambda p: p.with_concentration(None, 1e6).with_concentration(None, 1e6),
+        lambda p: p.with_shape_std(1e4).with_shape_std(1e4),
+    ],
+)
+def test_a_factor_that_would_overflow_is_refused_stating_the_range(posterior, call) -> None:
+    with pytest.raises(ValueError) as caught:
+        call(posterior)
+    message = str(caught.value)
+    assert "finite number > 0 and at most" in message, message
+    assert f"{MAX_SHAPE_STD:g}" in message or f"{MAX_CONCENTRATION:g}" in message, message
+
+
+def test_large_factors_inside_the_range_keep_the_uncertainty_finite(posterior) -> None:
+    largest_std = float(posterior.shape_std.max())
+    widened = posterior.with_shape_std(0.99 * MAX_SHAPE_STD / largest_std)
+    largest_s = float(posterior.pose_distribution.joints.S.abs().max())
+    sharpened = widened.with_concentration(None, 0.99 * MAX_CONCENTRATION / largest_s)
+    uncertainty = sharpened.vertex_uncertainty(8, seed=0)
+    assert torch.isfinite(uncertainty).all() and float(uncertainty.max()) > 1.0

@@ -82,3 +82,45 @@ def test_occluders_are_checked_once_and_read_only_then_passed_on_as_they_are() -
     painted = apply_occluders(grey_image(), occluders)
     np.testing.assert_array_equal(painted, apply_occluders(grey_image(), occluders.boxes))
     assert not painted[5:25, 10:30].any() and painted[5:25, 30].all()
+
+
+@pytest.mark.parametrize(
+    ("boxes", "found"),
+    [
+        (np.arange(12).reshape(2, 6) * 50, "(2, 6)"),  # once read as 3 boxes
+        (np.arange(1, 17).reshape(2, 2, 4) * 10, "(2, 2, 4)"),  # once read as 4 boxes
+        ([(1, 2, 3)], "(1, 3)"),
+        (np.zeros((3, 0)), "(3, 0)"),  # empty, but not (0, 4): once read as no box
+        (np.zeros((0, 5)), "(0, 5)"),
+        (np.zeros((2, 0, 4)), "(2, 0, 4)"),
+        ([[]], "(1, 0)"),
+        ([(1, 2, 3, 4), (1, 2)], "box 1 has 2"),  # ragged: once numpy's own message
+        ([(1, 2, 3, 4), [(1, 2), 3, 4, 5]], "box 1"),
+    ],
+)
+def test_boxes_of_the_wrong_shape_are_refused_before_any_reshape(boxes, found) -> None:
+    with pytest.raises(ValueError) as caught:
+        Occluders.of(boxes)
+    message = str(caught.value)
+    assert "(N, 4)" in message and "(x0, y0, x1, y1)" in message and found in message, message
+
+
+@pytest.mark.parametrize(
+    "boxes",
+    [
+        [("a", 2, 3, 4)],
+        np.array([[1 + 2j, 2, 3, 4]]),
+        [(True, 2, 3, 4)],
+        [(None, 2, 3, 4)],
+    ],
+)
+def test_boxes_must_hold_real_numbers(boxes) -> None:
+    with pytest.raises(ValueError, match="real numbers"):
+        Occluders.of(boxes)
+
+
+def test_every_empty_form_means_no_occluder() -> None:
+    for empty in (None, [], (), np.zeros((0, 4)), np.zeros(0)):
+        assert Occluders.of(empty).boxes.shape == (0, 4)
+    integer_boxes = Occluders.of(np.array([[1, 2, 3, 4]], dtype=np.int16))
+    np.testing.assert_array_equal(integer_boxes.boxes, [[1.0, 2.0, 3.0, 4.0]])

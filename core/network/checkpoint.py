@@ -23,17 +23,25 @@ A checkpoint is one ``torch.save`` file holding plain data only (loadable with
   predictor uses ``EvidenceConfig()``'s defaults |
 
 Format 1 files (no checksum) and format 2 files (no evidence settings) still load.
+
+:func:`read_checkpoint` trusts nothing in the file: the config is checked against the limits of
+:mod:`hkpd.network.config` and against the stored tensors' names and shapes before any network
+is built, and the weights must be finite and at most :data:`MAX_WEIGHT_MAGNITUDE`
+(``docs/network.md``, "Refused inputs: checkpoints").
 """
 
 from __future__ import annotations
 
 import hashlib
+import math
 import random
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
+
+from hkpd.network.config import NetworkConfig
 
 FORMAT = "hkpd-checkpoint"
 VERSION = 3
@@ -48,6 +56,14 @@ EvidenceSettings = dict[str, float | int | str]
 CALIBRATION_KEY = "log_concentration_scale"
 """The network's per-joint concentration calibration buffer; checkpoints older than it lack it
 (and load with zeros, i.e. uncalibrated)."""
+
+
+MAX_WEIGHT_MAGNITUDE = 1e4
+"""Largest magnitude a stored floating-point tensor may hold. The shipped network's largest is
+33.2 (a batch-norm running variance; its largest trained weight is 20.5), the ablation models'
+at most 12.4: a file above this bound (300 times the shipped one) is a diverged run, and is
+refused on load like one holding NaN or inf. Integer tensors (batch-norm step counters) are not
+bounded."""
 
 
 class CheckpointError(ValueError):
@@ -186,7 +202,9 @@ def read_checkpoint(path: Path | str, map_location: str | torch.device = "cpu") 
 
     Raises:
         FileNotFoundError: no such file.
-        CheckpointError: not an hkpd checkpoint, or written by a newer format version.
+        CheckpointError: not an hkpd checkpoint, written by a newer format version, damaged
+            (checksum), a ``network_config`` out of the limits or not fitting the stored
+            tensors, or non-finite or diverged weights; one line naming the file.
     """
     path = Path(path)
     if not path.is_file():
@@ -204,6 +222,7 @@ def read_checkpoint(path: Path | str, map_location: str | torch.device = "cpu") 
         )
     if not isinstance(payload.get("model"), dict) or "network_config" not in payload:
         raise CheckpointError(f"{path} is an hkpd checkpoint without weights or architecture")
+    weights = payload["model"]
     settings = payload.get(EVIDENCE_CONFIG_KEY, {})
     if not isinstance(settings, dict) or not all(isinstance(key, str) for key in settings):
         raise CheckpointError(
@@ -211,13 +230,134 @@ def read_checkpoint(path: Path | str, map_location: str | torch.device = "cpu") 
             f"names to values, got {settings!r}); store them again with hkpd-tune-evidence "
             "--write-to"
         )
+    if not all(isinstance(k, str) and isinstance(v, torch.Tensor) for k, v in weights.items()):
+        raise CheckpointError(f"{path} is damaged: its weights are not all named tensors")
+    config = stored_network_config(payload, path)
+    _check_backbone_layout(config, weights, path)
     expected = payload.get("checksum")
     if expected is not None and model_checksum(payload["model"]) != expected:
         raise CheckpointError(
             f"{path} is damaged: its weights do not match the checksum stored with them; "
             "use another copy (or the previous checkpoint)"
         )
+    _check_weight_values(weights, path)
+    _check_tensor_shapes(config, weights, path)
     return payload
+
+
+def stored_network_config(payload: dict, path: Path | str) -> NetworkConfig:
+    """The :class:`NetworkConfig` a checkpoint's payload stores, checked against the limits
+    (:data:`hkpd.network.config.INTEGER_LIMITS`, :data:`~hkpd.network.config.SEQUENCE_LIMITS`).
+
+    Raises:
+        CheckpointError: not a config, or a value of the wrong type or out of range.
+    """
+    stored = payload.get("network_config")
+    if not isinstance(stored, dict) or not all(isinstance(key, str) for key in stored):
+        raise CheckpointError(f"{path} is damaged: its network_config is not a dict of settings")
+    try:
+        return NetworkConfig.from_dict(stored)
+    except (TypeError, ValueError) as error:
+        raise CheckpointError(
+            f"{path} has an unusable network_config: {_one_line(error)}; the file is damaged "
+            "or was not written by hkpd-train, use another checkpoint"
+        ) from None
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split())
+
+
+def _check_backbone_layout(config: NetworkConfig, state: dict, path: Path | str) -> None:
+    """The backbone's stages and blocks per stage, read from the tensor names
+    (``backbone.stages.<stage>.<block>.…``), must be ``config.backbone_blocks``: checked from
+    the names alone, before anything is built."""
+    wanted = {
+        (stage, block) for stage, n in enumerate(config.backbone_blocks) for block in range(n)
+    }
+    held: set[tuple[int, int]] = set()
+    for key in state:
+        parts = key.split(".")[:4]
+        if len(parts) == 4 and parts[:2] == ["backbone", "stages"]:
+            digits = parts[2].isdigit() and parts[3].isdigit() and len(parts[2] + parts[3]) < 9
+            held.add((int(parts[2]), int(parts[3])) if digits else (-1, -1))
+    if held != wanted:
+        stages = 1 + max((stage for stage, _ in held), default=-1)
+        found: list[int] | str = [
+            len({block for s, block in held if s == stage}) for stage in range(min(stages, 64))
+        ]
+        if (-1, -1) in held or stages > 64:
+            found = "stages that no config can describe"
+        raise CheckpointError(
+            f"{path} does not fit its own architecture: its network_config says backbone_blocks "
+            f"{list(config.backbone_blocks)}, but its weights hold {found}; the file is damaged, "
+            "use another checkpoint"
+        )
+
+
+def _check_weight_values(state: dict[str, torch.Tensor], path: Path | str) -> None:
+    """Every floating-point tensor finite and at most :data:`MAX_WEIGHT_MAGNITUDE` in size."""
+    for key, tensor in state.items():
+        if not tensor.is_floating_point() or tensor.numel() == 0:
+            continue
+        largest = _largest_magnitude(tensor)
+        if not math.isfinite(largest):
+            what = "NaN" if math.isnan(largest) else "inf"
+            raise CheckpointError(
+                f"{path} holds non-finite weights ({what} in {key}), as a diverged training "
+                "run writes; use an earlier checkpoint"
+            )
+        if largest > MAX_WEIGHT_MAGNITUDE:
+            raise CheckpointError(
+                f"{path} holds weights larger than {MAX_WEIGHT_MAGNITUDE:g} in magnitude "
+                f"({largest:.3g} in {key}), as a diverged training run writes; use an earlier "
+                "checkpoint"
+            )
+
+
+_SAME_SIZE_INTEGERS = {
+    torch.float16: torch.int16,
+    torch.bfloat16: torch.int16,
+    torch.float32: torch.int32,
+    torch.float64: torch.int64,
+}
+
+
+def _largest_magnitude(tensor: torch.Tensor) -> float:
+    """The largest ``|entry|`` of a float tensor: NaN if any entry is NaN, else inf if any is
+    infinite. Read from the bits (sign cleared, the largest pattern is the largest magnitude,
+    inf's above every finite one and NaN's above inf's): float16 arithmetic on the CPU took
+    1.6 s for the shipped file, this takes a few ms."""
+    integers = _SAME_SIZE_INTEGERS.get(tensor.dtype)
+    if integers is None:
+        return float(tensor.detach().double().abs().amax())
+    worst = (tensor.detach().view(integers) & torch.iinfo(integers).max).amax()
+    if worst > torch.tensor(math.inf, dtype=tensor.dtype).view(integers):
+        return math.nan
+    return float(worst.view(tensor.dtype))
+
+
+def _check_tensor_shapes(config: NetworkConfig, state: dict, path: Path | str) -> None:
+    """The stored tensors must be exactly the names and shapes of ``config``'s network (built on
+    the ``meta`` device, which allocates no memory; the config is already within the limits),
+    except for a missing :data:`CALIBRATION_KEY` (older checkpoints)."""
+    from hkpd.network.model import DistributionNetwork
+
+    with torch.device("meta"):
+        expected = {k: tuple(v.shape) for k, v in DistributionNetwork(config).state_dict().items()}
+    missing = sorted(set(expected) - set(state) - {CALIBRATION_KEY})
+    unexpected = sorted(set(state) - set(expected))
+    wrong = [k for k in expected if k in state and tuple(state[k].shape) != expected[k]]
+    if missing or unexpected or wrong:
+        if wrong:
+            found = f"{wrong[0]} is {tuple(state[wrong[0]].shape)} in the file"
+            problem = f"{found} but {expected[wrong[0]]} for that config"
+        else:
+            problem = f"missing {missing[:3]}, unexpected {unexpected[:3]}"
+        raise CheckpointError(
+            f"{path} does not fit its own architecture: its network_config does not match its "
+            f"weights ({problem}); the file is damaged, use another checkpoint"
+        )
 
 
 def load_network(path: Path | str, device: str | torch.device = "cpu") -> tuple[Any, dict]:

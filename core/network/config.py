@@ -6,13 +6,36 @@ The config round-trips through a plain dict (:meth:`NetworkConfig.to_dict`,
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields
+from numbers import Integral, Real
 from typing import Any
 
 from hkpd.proxy import DEFAULT_IMAGE_PROXY, proxy_channels
 
 POSE_HEADS = ("independent", "hierarchical")
 """Accepted values of :attr:`NetworkConfig.pose_head`."""
+
+INTEGER_LIMITS: dict[str, tuple[int, int]] = {
+    "backbone_base_width": (1, 256),
+    "head_hidden": (1, 8192),
+    "num_betas": (1, 300),
+    "image_size": (32, 1024),
+    "input_channels": (1, 64),
+}
+"""Inclusive ``(lowest, highest)`` of each integer field. Generous for real use (the shipped
+network: width 32, head 512, 10 betas, 128 px; ResNet-18 is width 64 at 256 px) and far below
+what would exhaust memory: a checkpoint's config is checked against them (and its tensors'
+shapes) before any network is built (``docs/network.md``, "Refused inputs")."""
+
+SEQUENCE_LIMITS: dict[str, tuple[int, tuple[int, int]]] = {
+    "backbone_blocks": (5, (1, 36)),
+    "joint_hidden": (4, (1, 8192)),
+}
+"""``(most entries, (lowest, highest) entry)`` of each tuple field: up to 5 ResNet stages of up
+to 36 blocks (ResNet-152's deepest stage has 36), up to 4 hidden layers per joint. The largest
+backbone these allow (180 blocks) takes 0.4-0.8 s (load 10) to lay out on the ``meta`` device
+for the shape check; the shipped one (8 blocks) ~30 ms."""
 
 
 @dataclass(frozen=True)
@@ -61,27 +84,28 @@ class NetworkConfig:
     concentration_gain: bool = False
 
     def __post_init__(self) -> None:
-        # Tuples may arrive as lists from JSON.
-        object.__setattr__(self, "backbone_blocks", tuple(int(b) for b in self.backbone_blocks))
-        object.__setattr__(self, "joint_hidden", tuple(int(h) for h in self.joint_hidden))
-        if self.pose_head not in POSE_HEADS:
-            raise ValueError(f"pose_head must be one of {POSE_HEADS}, got {self.pose_head!r}")
-        if self.backbone_base_width < 1 or not self.backbone_blocks:
+        # Lists arrive for the tuples from JSON and checkpoints; every value is checked for its
+        # type and range first, so that no network is ever built from a hostile config.
+        for name, (low, high) in INTEGER_LIMITS.items():
+            object.__setattr__(self, name, _whole_number(name, getattr(self, name), low, high))
+        for name, (count, (low, high)) in SEQUENCE_LIMITS.items():
+            entries = _whole_numbers(name, getattr(self, name), count, low, high)
+            object.__setattr__(self, name, entries)
+        for name in ("initial_pose_concentration", "initial_camera_scale", "initial_shape_std"):
+            object.__setattr__(self, name, _finite_number(name, getattr(self, name)))
+        if not isinstance(self.concentration_gain, bool):
             raise ValueError(
-                "backbone_base_width must be positive and backbone_blocks non-empty, got "
-                f"{self.backbone_base_width} and {self.backbone_blocks}"
+                f"concentration_gain must be true or false, got {_shown(self.concentration_gain)}"
             )
-        if any(b < 1 for b in self.backbone_blocks) or any(h < 1 for h in self.joint_hidden):
-            raise ValueError("backbone_blocks and joint_hidden entries must be positive")
-        if min(self.head_hidden, self.num_betas, self.input_channels) < 1:
-            raise ValueError("head_hidden, num_betas and input_channels must be positive")
+        if not isinstance(self.pose_head, str) or self.pose_head not in POSE_HEADS:
+            raise ValueError(f"pose_head must be one of {POSE_HEADS}, got {_shown(self.pose_head)}")
+        if not isinstance(self.image_proxy, str):
+            raise ValueError(f"image_proxy must be a proxy name, got {_shown(self.image_proxy)}")
         if self.input_channels != proxy_channels(self.image_proxy):  # also checks the name
             raise ValueError(
                 f"the {self.image_proxy!r} proxy has {proxy_channels(self.image_proxy)} channels, "
                 f"but input_channels is {self.input_channels}"
             )
-        if self.image_size < 32:
-            raise ValueError(f"image_size must be at least 32 pixels, got {self.image_size}")
         if self.initial_camera_scale <= 0 or self.initial_shape_std <= 0:
             raise ValueError("initial_camera_scale and initial_shape_std must be positive")
         if self.initial_pose_concentration < 0:
@@ -106,3 +130,34 @@ class NetworkConfig:
                 f"unknown NetworkConfig keys {unknown}; the known keys are {sorted(known)}"
             )
         return cls(**data)
+
+
+def _shown(value: object) -> str:
+    """``repr(value)``, cut to 60 characters (a hostile file may store a huge value)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _whole_number(name: str, value: object, low: int, high: int) -> int:
+    """``value`` as an int in ``low..high``, or a ValueError naming the field and the range."""
+    if isinstance(value, bool) or not isinstance(value, Integral) or not low <= value <= high:
+        raise ValueError(f"{name} must be an integer in {low}..{high}, got {_shown(value)}")
+    return int(value)
+
+
+def _whole_numbers(name: str, value: object, count: int, low: int, high: int) -> tuple[int, ...]:
+    """``value`` as a tuple of 1..``count`` ints in ``low..high``, or a ValueError."""
+    wanted = f"{name} must be a list of 1 to {count} integers in {low}..{high}"
+    if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= count:
+        raise ValueError(f"{wanted}, got {_shown(value)}")
+    try:
+        return tuple(_whole_number(name, entry, low, high) for entry in value)
+    except ValueError:
+        raise ValueError(f"{wanted}, got {_shown(value)}") from None
+
+
+def _finite_number(name: str, value: object) -> float:
+    """``value`` as a finite float, or a ValueError naming the field."""
+    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {_shown(value)}")
+    return float(value)

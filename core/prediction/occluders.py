@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from numbers import Real
 from typing import TypeVar
 
 import numpy as np
@@ -36,22 +37,16 @@ class Occluders:
             read-only. ``N = 0``: no occluder.
 
     Raises:
-        ValueError: boxes not ``(N, 4)`` finite numbers, a single unwrapped box, or
-            ``x1 <= x0`` / ``y1 <= y0``.
+        ValueError: boxes not ``(N, 4)`` finite real numbers (checked before any reshape: a
+            ``(2, 6)`` or ``(2, 2, 4)`` array, ``[(1, 2, 3)]``, ragged lists, bools, strings,
+            complex numbers are refused, the message naming the expected shape and what was
+            found), a single unwrapped box, or ``x1 <= x0`` / ``y1 <= y0``.
     """
 
     boxes: np.ndarray
 
     def __post_init__(self) -> None:
-        array = np.array(self.boxes, dtype=np.float64)
-        if array.size == 0:
-            array = array.reshape(0, 4)
-        if array.ndim == 1 and array.shape == (4,):
-            raise ValueError(
-                "boxes must be a list of (x0, y0, x1, y1) boxes; wrap a single box: [box]"
-            )
-        if array.ndim != 2 or array.shape[1] != 4:
-            raise ValueError(f"boxes must have shape (N, 4) as (x0, y0, x1, y1), got {array.shape}")
+        array = _box_array(self.boxes)
         if not np.isfinite(array).all():
             raise ValueError("occluder boxes must be finite numbers")
         for x0, y0, x1, y1 in array:
@@ -81,6 +76,70 @@ class Occluders:
                 (u >= np.floor(x0)) & (u < np.ceil(x1)) & (v >= np.floor(y0)) & (v < np.ceil(y1))
             )
         return covered
+
+
+SHAPE_NEEDED = "occluder boxes must have shape (N, 4) as (x0, y0, x1, y1) real numbers, got "
+"""How every refused shape or entry type starts its message."""
+
+SINGLE_BOX = "boxes must be a list of (x0, y0, x1, y1) boxes; wrap a single box: [box]"
+
+
+def _box_array(boxes: object) -> np.ndarray:
+    """``boxes`` as an ``(N, 4)`` float64 array, checked for shape and entry type before any
+    reshape: an ``(N, 4)`` array of integers or floats, or a sequence of 4-number sequences;
+    any empty array or sequence of shape ``(0,)`` or ``(0, 4)`` is no box.
+
+    Raises:
+        ValueError: anything else, with :data:`SHAPE_NEEDED` and what was found.
+    """
+    if isinstance(boxes, (list, tuple)):
+        return _boxes_from_sequence(boxes)
+    array = np.asarray(boxes)
+    if array.dtype == object:
+        return _boxes_from_sequence(array.tolist() if array.ndim else [boxes])
+    if array.dtype.kind not in "iuf":
+        raise ValueError(SHAPE_NEEDED + f"an array of {array.dtype}")
+    if array.shape == (4,):
+        raise ValueError(SINGLE_BOX)
+    if array.shape == (0,):
+        return np.zeros((0, 4))
+    if array.ndim != 2 or array.shape[1] != 4:
+        raise ValueError(SHAPE_NEEDED + str(array.shape))
+    return array.astype(np.float64)
+
+
+def _boxes_from_sequence(boxes: list | tuple) -> np.ndarray:
+    """:func:`_box_array` of a list or tuple: each entry a sequence (or 1-D array) of 4 real
+    numbers (not bools)."""
+    if len(boxes) == 4 and all(_is_real(entry) for entry in boxes):
+        raise ValueError(SINGLE_BOX)
+    rows = []
+    for index, box in enumerate(boxes):
+        if isinstance(box, np.ndarray) and box.ndim == 1:
+            box = box.tolist()
+        if not isinstance(box, (list, tuple)):
+            raise ValueError(SHAPE_NEEDED + f"box {index} is {_shown(box)}")
+        rows.append(box)
+    lengths = [len(row) for row in rows]
+    if any(length != 4 for length in lengths):
+        if len(set(lengths)) == 1:
+            raise ValueError(SHAPE_NEEDED + f"({len(rows)}, {lengths[0]})")
+        index = next(i for i, length in enumerate(lengths) if length != 4)
+        raise ValueError(SHAPE_NEEDED + f"box {index} has {lengths[index]} numbers")
+    for index, row in enumerate(rows):
+        if not all(_is_real(entry) for entry in row):
+            raise ValueError(SHAPE_NEEDED + f"box {index} holds {_shown(row)}")
+    return np.array(rows, dtype=np.float64).reshape(len(rows), 4)
+
+
+def _is_real(value: object) -> bool:
+    """A real number (python or numpy), not a bool."""
+    return isinstance(value, Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _shown(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def apply_occluders(image: Image, boxes: Occluders | OccluderBoxes) -> Image:

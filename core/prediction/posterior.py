@@ -14,8 +14,10 @@ import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from numbers import Real
 from typing import TYPE_CHECKING, Literal, Protocol
 
+import numpy as np
 import torch
 
 from hkpd.body import BodyModel
@@ -31,6 +33,20 @@ if TYPE_CHECKING:
 PosteriorSource = Literal["network", "evidence"]
 """Where a posterior's distribution comes from: the network alone (the paper's method), or the
 network's distribution conditioned on the photo's 2D keypoints (``docs/evidence.md``)."""
+
+RealNumber = float | np.floating | np.integer | np.ndarray | torch.Tensor
+"""A scale factor: any real number (python, numpy, a 0-d array, a one-element tensor)."""
+
+MAX_SHAPE_STD = 1e6
+"""Largest shape standard deviation :meth:`BodyPosterior.with_shape_std` may make (shape
+coefficients are in units of the body-shape prior's standard deviation, 1): far past any
+meaningful body, and far inside float32 for the sampled vertices and their spreads (std 1e6
+gives a vertex uncertainty of 1.6e4 m; 1e30 gave inf)."""
+
+MAX_CONCENTRATION = 1e12
+"""Largest proper singular value of a joint's ``F`` that :meth:`BodyPosterior.with_concentration`
+may make (a spread of about 1e-6 rad, a point mass for any use), far below where the float32
+sampler overflows (about 3e38)."""
 
 UNCERTAINTY_CHUNK = 500
 """Meshes built at a time by :meth:`BodyPosterior.vertex_uncertainty` (~80 MB of vertices)."""
@@ -248,14 +264,20 @@ class BodyPosterior:
             return posed.vertices.sub_(posed.joints[:, :1])
 
     def with_concentration(
-        self, joint: int | str | Sequence[int | str] | None, factor: float
+        self, joint: int | str | Sequence[int | str] | None, factor: RealNumber
     ) -> BodyPosterior:
         """A posterior whose selected joints' concentrations are scaled by ``factor``.
 
         Factors multiply: scaling twice by 2 is scaling by 4. ``joint=None`` scales all 23.
         Principal axes and modes do not change, only how tightly samples gather around them.
+
+        Raises:
+            TypeError: ``factor`` is not a real number (python, numpy or a one-element torch
+                tensor; bools and complex numbers are not).
+            ValueError: ``factor`` is not finite and > 0, or would push a selected joint's
+                proper singular value past :data:`MAX_CONCENTRATION` (the message gives the
+                largest factor allowed).
         """
-        factor = _positive_factor("concentration factor", factor)
         if joint is None:
             selected = list(range(len(BODY_JOINT_NAMES)))
         elif isinstance(joint, (int, str)) and not isinstance(joint, bool):
@@ -266,30 +288,61 @@ class BodyPosterior:
             raise TypeError(
                 f"joint must be a joint index, a name, a list of them or None, got {joint!r}"
             )
+        largest = float(self.pose_distribution.joints.S[..., selected, :].abs().max())
+        factor = _scale_factor(
+            "concentration factor", factor, largest, MAX_CONCENTRATION, "concentration"
+        )
         scaled = self.pose_distribution.scale_concentration(selected, factor)
         edited = replace(self, distribution=replace(self.distribution, F=scaled.F[0]))
         edited.__dict__["pose_distribution"] = scaled  # keeps the reused SVD (cached_property)
         return edited
 
-    def with_shape_std(self, factor: float) -> BodyPosterior:
-        """A posterior whose shape standard deviations are scaled by ``factor`` (> 0)."""
-        factor = _positive_factor("shape std factor", factor)
+    def with_shape_std(self, factor: RealNumber) -> BodyPosterior:
+        """A posterior whose shape standard deviations are scaled by ``factor`` (> 0).
+
+        Raises:
+            TypeError, ValueError: as :meth:`with_concentration`, the bound being
+                :data:`MAX_SHAPE_STD` for every shape standard deviation.
+        """
+        largest = float(self.shape_std.abs().max())
+        factor = _scale_factor("shape std factor", factor, largest, MAX_SHAPE_STD, "shape std")
         shape_std = self.shape_std * factor
         edited = replace(self, distribution=replace(self.distribution, shape_std=shape_std))
         edited.__dict__["pose_distribution"] = self.pose_distribution  # pose unchanged
         return edited
 
 
-def _positive_factor(name: str, factor: float) -> float:
-    """``factor`` as a float, or a ValueError saying it must be a finite positive number."""
-    number = isinstance(factor, (int, float)) and not isinstance(factor, bool)
-    scalar_tensor = isinstance(factor, torch.Tensor) and factor.numel() == 1
-    if not (number or scalar_tensor):
-        raise TypeError(f"{name} must be a number, got {factor!r}")
-    value = float(factor)
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value}")
+def _scale_factor(name: str, factor: RealNumber, largest: float, limit: float, what: str) -> float:
+    """``factor`` as a float, or one message for every refusal: it must be finite, > 0 and keep
+    the largest scaled value (``largest`` now) at most ``limit``."""
+    value = _real_number(name, factor)
+    ceiling = limit / largest if largest > 0 else math.inf
+    if not (math.isfinite(value) and 0 < value <= ceiling):
+        raise ValueError(
+            f"{name} must be a finite number > 0 and at most {limit:g} / the largest {what} "
+            f"({ceiling:.3g} for this posterior), got {value:g}"
+        )
     return value
+
+
+def _real_number(name: str, factor: RealNumber) -> float:
+    """``factor`` as a float (inf if it overflows one): any real python or numpy number, a 0-d
+    numpy array or a one-element torch tensor of a real dtype; not a bool or complex number."""
+    if isinstance(factor, torch.Tensor):
+        real = factor.numel() == 1 and not (factor.dtype.is_complex or factor.dtype == torch.bool)
+    elif isinstance(factor, np.ndarray):
+        real = factor.ndim == 0 and factor.dtype.kind in "iuf"
+    else:
+        real = isinstance(factor, Real) and not isinstance(factor, (bool, np.bool_))
+    if not real:
+        raise TypeError(
+            f"{name} must be a real number (an int or float, or a numpy or torch scalar), "
+            f"got {factor!r}"
+        )
+    try:
+        return float(factor)
+    except OverflowError:  # an int beyond float64
+        return math.inf
 
 
 def _joint_key(joint: int | str) -> int | str:

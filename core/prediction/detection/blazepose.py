@@ -36,8 +36,8 @@ from hkpd.prediction.detection.models import (
     LANDMARK_MODEL,
     SEGMENTATION_OUTPUT,
     TfliteModel,
-    blazepose_model_path,
     drop_output,
+    read_blazepose_model,
 )
 from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.detection.warp import (
@@ -126,10 +126,10 @@ class BlazePose:
     ) -> None:
         self.min_detection_confidence = min_detection_confidence
         self.segmentation = segmentation
-        landmark_model = blazepose_model_path(LANDMARK_MODEL).read_bytes()
+        landmark_model = read_blazepose_model(LANDMARK_MODEL)
         if not segmentation:
             landmark_model = drop_output(landmark_model, SEGMENTATION_OUTPUT)
-        self._detector = TfliteModel(blazepose_model_path(DETECTOR_MODEL).read_bytes(), threads)
+        self._detector = TfliteModel(read_blazepose_model(DETECTOR_MODEL), threads)
         self._landmarker = TfliteModel(landmark_model, threads)
         self._anchors = ssd_anchor_centres(self._detector.input_size)
 

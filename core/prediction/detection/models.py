@@ -9,6 +9,8 @@ caller serialises calls).
 
 from __future__ import annotations
 
+import hashlib
+import os
 from pathlib import Path
 
 import flatbuffers
@@ -38,9 +40,69 @@ def blazepose_model_path(parts: tuple[str, str]) -> Path:
     Raises:
         FileNotFoundError: the file is missing (a broken install).
     """
-    return shipped_file(
-        parts, "BlazePose model", "reinstall hkpd (pip install -e . from a full clone)"
-    )
+    return shipped_file(parts, "BlazePose model", REINSTALL)
+
+
+MODEL_FILES: dict[str, tuple[int, str]] = {
+    "pose_detection.tflite": (
+        2_959_046,
+        "9ba9dd3d42efaaba86b4ff0122b06f29c4122e756b329d89dca1e297fd8f866c",
+    ),
+    "pose_landmark_full.tflite": (
+        6_440_512,
+        "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f",
+    ),
+}
+"""Each shipped model's size in bytes and sha256, as ``assets/blazepose/NOTICE.md`` lists
+them (the files are copied unmodified from the ``mediapipe==0.10.21`` wheel)."""
+
+REINSTALL = "reinstall hkpd (pip install -e . from a full clone)"
+"""What to do about a missing or damaged model file."""
+
+_verified: dict[str, tuple[int, int, int]] = {}
+"""Path -> ``(size, mtime_ns, inode)`` of each model file whose sha256 this process checked."""
+
+
+class DamagedModelError(ValueError):
+    """A BlazePose model file is not the one hkpd ships; the message names it and the fix."""
+
+
+def read_blazepose_model(parts: tuple[str, str]) -> bytes:
+    """The bytes of one of BlazePose's model files (:data:`DETECTOR_MODEL`,
+    :data:`LANDMARK_MODEL`), checked against :data:`MODEL_FILES`: its size always, its sha256
+    once per process and file (again only when the file's size, time or inode change; 13-17 ms
+    for both files on the 2-core development machine at load 9, docs/benchmarks.md).
+
+    Raises:
+        FileNotFoundError: the file is missing (a broken install).
+        DamagedModelError: the file has another size or sha256 (truncated, emptied, replaced
+            by a text pointer, or changed anywhere), naming it and how to restore it.
+    """
+    path = blazepose_model_path(parts)
+    size, digest = MODEL_FILES[parts[1]]
+    with path.open("rb") as file:
+        status = os.fstat(file.fileno())
+        if status.st_size != size:
+            raise DamagedModelError(
+                f"the BlazePose model {path} is damaged ({status.st_size:,} bytes instead of "
+                f"{size:,}); {REINSTALL} to restore it"
+            )
+        content = file.read(size + 1)
+    stamp = (status.st_size, status.st_mtime_ns, status.st_ino)
+    if len(content) != size or _verified.get(str(path)) != stamp:
+        found = hashlib.sha256(content).hexdigest()
+        if found != digest:
+            raise DamagedModelError(
+                f"the BlazePose model {path} is damaged (its sha256 is {found[:16]}..., not the "
+                f"shipped {digest[:16]}...); {REINSTALL} to restore it"
+            )
+        _verified[str(path)] = stamp
+    return content
+
+
+def forget_verified_models() -> None:
+    """Check every model's sha256 again on its next read (for tests)."""
+    _verified.clear()
 
 
 class TfliteModel:
