@@ -142,9 +142,7 @@ def prepare_network_input(
     keypoints_crop = crop.image_to_crop(detection.keypoints)
     crop_silhouette = None
     if image_proxy == "silhouette":
-        if len(occluders):
-            silhouette = apply_occluders(silhouette, occluders)  # the photo's own pixels
-        crop_silhouette = crop.crop_image(silhouette.astype(np.uint8) * 255) >= 128
+        crop_silhouette = _crop_silhouette(silhouette, occluders, crop)
     person_mask, person_mask_known = _mask_evidence(detection, crop, occluders)
     proxy_mask = _proxy_mask(image_proxy, crop_silhouette, person_mask, person_mask_known)
     proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, proxy_mask)
@@ -172,6 +170,15 @@ def _mask_evidence(
         return None, None
     known = mask_known(crop, detection.image_size, occluders)
     return crop_person_mask(detection.person_mask, crop), known
+
+
+def _crop_silhouette(
+    silhouette: np.ndarray, occluders: Occluders, crop: CropTransform
+) -> np.ndarray:
+    """``(S, S)`` bool: the photo's ``(H, W)`` silhouette minus the occluders, in the crop."""
+    if len(occluders):
+        silhouette = apply_occluders(silhouette, occluders)  # the photo's own pixels
+    return crop.crop_image(silhouette.astype(np.uint8) * 255) >= 128
 
 
 def _proxy_mask(
