@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -350,3 +351,32 @@ def test_the_status_says_which_distribution_and_whether_it_was_read_upright() ->
         fallback_reason=None, conditioned=False, upright_tilt_degrees=None, mirror_read=True
     )
     assert "mirror image" in source_text(mirrored) and "mirror" not in source_text(lying)
+
+
+def test_bombs_and_huge_uploads_at_once_are_refused_with_a_message(app):
+    from test_prediction_image_input import png_header_only
+
+    client = RecordingClient()
+    size = app.state.image_size
+    uploads = [("bomb.png", png_header_only(30000, 30000))]
+    uploads += [(f"huge_{i}.png", png_header_only(13300, 13300)) for i in range(3)]
+    buffer = io.BytesIO()
+    Image.fromarray(np.random.default_rng(0).integers(0, 255, (300, 400, 3), np.uint8)).save(
+        buffer, format="JPEG"
+    )
+    uploads += [("cut.jpg", buffer.getvalue()[: len(buffer.getvalue()) // 2])]  # truncated
+    threads = [
+        threading.Thread(target=app.load_upload, args=(name, content, client))
+        for name, content in uploads
+    ]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert app.wait_idle(30)
+    assert app.state.image_size == size
+    assert [title for title, _ in client.notifications] == ["Photo not loaded"] * 5
+    messages = sorted(message for _, message in client.notifications)
+    assert all("megapixels" in message for message in messages if "huge" in message)
+    assert "megapixels" in next(m for m in messages if "bomb" in m)
+    assert "could not be read" in next(m for m in messages if "cut" in m)
