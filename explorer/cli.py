@@ -7,15 +7,18 @@ Usage::
                  [--samples 100] [--meshes 10]
 
 The server binds to 127.0.0.1 unless ``--host`` says otherwise (anyone who can reach the port
-can drive the app and upload files, so a warning is printed). Ctrl-C stops it.
+can drive the app and upload files, so a warning is printed). A busy ``--port`` is an error;
+``--port 0`` takes any free port. Ctrl-C stops it.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import math
 import signal
+import socket
 import sys
 import threading
 import webbrowser
@@ -53,7 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="look for the person only inside this box (photo pixels): to pick one of several "
         "people, or when none is found",
     )
-    parser.add_argument("--port", type=int, default=8080, help="TCP port (default 8080)")
+    parser.add_argument(
+        "--port", type=int, default=8080, help="TCP port (default 8080; 0: any free port)"
+    )
     parser.add_argument("--host", default="127.0.0.1", help="interface to bind (default local)")
     parser.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
     parser.add_argument("--model", default=None, help="trained model checkpoint (default: shipped)")
@@ -94,6 +99,25 @@ def _load_photo(path: str | None, demo: str = "photo") -> np.ndarray:
         raise SystemExit(f"hkpd-explore: cannot use {path!r}: {error}") from None
 
 
+def _refuse_busy_port(host: str, port: int) -> None:
+    """Exit with a clear message when ``host:port`` cannot be bound (viser itself would
+    silently take the next free port)."""
+    try:
+        with socket.create_server((host, port)):
+            pass
+    except OSError as error:
+        if error.errno == errno.EADDRINUSE:
+            raise SystemExit(_busy_port_message(port)) from None
+        raise SystemExit(f"hkpd-explore: cannot listen on {host}:{port} ({error})") from None
+
+
+def _busy_port_message(port: int) -> str:
+    return (
+        f"hkpd-explore: port {port} is already in use; choose another with --port N, or "
+        "--port 0 for any free port"
+    )
+
+
 def _build_provider(args: argparse.Namespace) -> PosteriorProvider:
     if args.provider is not None:
         module_name, _, attribute = args.provider.partition(":")
@@ -127,6 +151,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "explorer and upload files to this machine",
             file=sys.stderr,
         )
+    if args.port != 0:
+        _refuse_busy_port(args.host, args.port)
     image = _load_photo(args.image, args.demo)
     person_box = None
     if args.bbox is not None:
@@ -147,6 +173,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         num_displayed=args.meshes,
         person_box=person_box,
     )
+    if args.port not in (0, app.server.get_port()):  # taken between the check and the bind
+        app.stop()
+        raise SystemExit(_busy_port_message(args.port))
     # Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (even inside the
     # banner's print) cannot interrupt half-done work; a second Ctrl-C while stopping does.
     stop = threading.Event()

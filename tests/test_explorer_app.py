@@ -380,3 +380,15 @@ def test_bombs_and_huge_uploads_at_once_are_refused_with_a_message(app):
     assert all("megapixels" in message for message in messages if "huge" in message)
     assert "megapixels" in next(m for m in messages if "bomb" in m)
     assert "could not be read" in next(m for m in messages if "cut" in m)
+
+
+def test_a_busy_port_is_an_error_naming_it_and_suggesting_port_0():
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as taken:
+        port = taken.getsockname()[1]
+        result = run_cli("--no-browser", "--port", str(port), "--demo", "synthetic",
+                         "--provider", "test_explorer_double:OcclusionAwareDouble")  # fmt: skip
+    assert result.returncode != 0
+    assert f"port {port} is already in use" in result.stderr and "--port 0" in result.stderr
+    assert "Traceback" not in result.stderr and "running at" not in result.stdout

@@ -549,7 +549,28 @@ def _checked_options(
         raise UsageError(f"--samples must be >= 0, got {args.samples}")
     if args.uncertainty_samples < 2:
         raise UsageError(f"--uncertainty-samples must be >= 2, got {args.uncertainty_samples}")
+    check_out_folder(args.out)
     return formats, bbox
+
+
+def check_out_folder(out: Path) -> None:
+    """Refuse an ``--out`` that cannot become a writable folder, before the model loads.
+
+    Raises:
+        UsageError: ``out`` (or a folder above it) is a file, or the nearest existing folder
+            above it cannot be written.
+    """
+    existing = out
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        where = "is a file" if existing == out else f"is below the file {existing}"
+        raise UsageError(f"--out {out} {where}; give the path of a folder (new or existing)")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise UsageError(
+            f"--out {out}: cannot write in {existing} (permission denied); choose a folder "
+            "you can write to"
+        )
 
 
 def _loaded_or_reported(args: argparse.Namespace) -> Predictor | None:
