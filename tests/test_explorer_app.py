@@ -11,6 +11,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -392,3 +393,26 @@ def test_a_busy_port_is_an_error_naming_it_and_suggesting_port_0():
     assert result.returncode != 0
     assert f"port {port} is already in use" in result.stderr and "--port 0" in result.stderr
     assert "Traceback" not in result.stderr and "running at" not in result.stdout
+
+
+def test_removing_occluders_warns_nothing_and_remove_all_numbers_from_one(app):
+    app.clear_occluders()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for offset in (0, 60, 120):
+            assert app.add_occluder((10 + offset, 10, 50 + offset, 50))
+        first = app.state.snapshot().occluders[0].ident
+        app.occluders_changed(app.state.set_occluder_enabled(first, False))
+        click = app.panels.photo.occluders.controls(first).delete
+        click.value = True  # the Delete button
+        app.clear_occluders()  # "Remove all occluders"
+        assert app.add_occluder((10, 10, 50, 50))
+        assert app.wait_idle(30)
+        app.clear_occluders()
+        assert app.wait_idle(30)
+    removal = [str(w.message) for w in caught if "already removed" in str(w.message)]
+    assert removal == []
+    assert app.add_occluder((10, 10, 50, 50))
+    assert [o.ident for o in app.state.snapshot().occluders] == [1]
+    assert app.panels.photo.occluders.controls(1).folder.label == "Occluder #1"
+    app.clear_occluders()
