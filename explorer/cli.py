@@ -23,12 +23,17 @@ import sys
 import threading
 import webbrowser
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.explorer.provider import PosteriorProvider, PredictorProvider
 from hkpd.explorer.state import MAX_DISPLAYED_SAMPLES, MAX_SAMPLES
+from hkpd.interrupts import interrupted
+
+if TYPE_CHECKING:
+    from hkpd.explorer.app import ExplorerApp
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -153,17 +158,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     if args.port != 0:
         _refuse_busy_port(args.host, args.port)
-    image = _load_photo(args.image, args.demo)
+    try:
+        image = _load_photo(args.image, args.demo)
+    except KeyboardInterrupt:
+        return interrupted("hkpd-explore")
     person_box = None
     if args.bbox is not None:
         x0, y0, x1, y1 = args.bbox
         if not (x1 > x0 and y1 > y0) or not all(map(math.isfinite, args.bbox)):
             raise SystemExit("hkpd-explore: --bbox needs x0 y0 x1 y1 with x1 > x0 and y1 > y0")
         person_box = (x0, y0, x1, y1)
-    provider = _build_provider(args)
-
-    from hkpd.explorer.app import ExplorerApp
-
+    try:
+        provider = _build_provider(args)
+        from hkpd.explorer.app import ExplorerApp
+    except KeyboardInterrupt:
+        return interrupted("hkpd-explore")
+    # From here Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (while the
+    # server starts, inside the banner's print) cannot interrupt half-done work; a second
+    # Ctrl-C while stopping does.
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
     app = ExplorerApp(
         provider,
         image,
@@ -173,14 +188,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         num_displayed=args.meshes,
         person_box=person_box,
     )
+    if stop.is_set():  # Ctrl-C while the server was starting
+        app.stop()
+        return interrupted("hkpd-explore")
+    return _serve(app, args, stop)
+
+
+def _serve(app: ExplorerApp, args: argparse.Namespace, stop: threading.Event) -> int:
+    """Serve until ``stop`` is set (Ctrl-C or SIGTERM, the normal way to stop: status 0)."""
     if args.port not in (0, app.server.get_port()):  # taken between the check and the bind
         app.stop()
         raise SystemExit(_busy_port_message(args.port))
-    # Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (even inside the
-    # banner's print) cannot interrupt half-done work; a second Ctrl-C while stopping does.
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
     print(f"hkpd explorer running at {app.url}  (Ctrl-C to stop)", flush=True)
     if not args.no_browser:
         webbrowser.open(app.url)

@@ -46,6 +46,7 @@ import numpy as np
 import torch
 from PIL import Image
 
+from hkpd.interrupts import deferred_interrupts, interrupted
 from hkpd.prediction.exports.combined_shape import write_combined_shape
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
 from hkpd.prediction.exports.writers import (
@@ -497,7 +498,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: error: {len(taken)} result folder(s) already exist ({shown}); pass "
               "--overwrite to replace them, or choose another --out", file=sys.stderr)  # fmt: skip
         return 2
-    predictor = _loaded_or_reported(args)
+    created_out = not args.out.exists()
+    try:
+        predictor = _loaded_or_reported(args)
+    except KeyboardInterrupt:
+        return interrupted(PROG, "no photo was predicted")
     if predictor is None:
         return 2
     model_path = args.model or "shipped model (hkpd.assets/models/hkpd_hierarchical.pt)"
@@ -528,9 +533,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.same_person:
             combined = _combine_into(args.out / combined_name, predictor, results, formats, scale)
     except KeyboardInterrupt:
-        print(f"\n{PROG}: interrupted after {len(results)} of {len(images)} photos; the "
-              "folders written so far are complete", file=sys.stderr)  # fmt: skip
-        return 130
+        if created_out and args.out.is_dir() and not any(args.out.iterdir()):
+            args.out.rmdir()  # nothing was written: leave no empty folder behind
+        return interrupted(PROG, f"{len(results)} of {len(images)} photos done; the folders "
+                           "written so far are complete, nothing is half-written")  # fmt: skip
     finally:
         torch.set_grad_enabled(grad_was_enabled)
         closer = getattr(predictor, "close", None)
@@ -651,11 +657,13 @@ def _written_atomically(folder: Path, write: Callable[[Path], _Written]) -> _Wri
     shutil.rmtree(partial, ignore_errors=True)
     try:
         written = write(partial)
-        if folder.exists():
-            shutil.rmtree(folder)
-        partial.rename(folder)
+        with deferred_interrupts():  # Ctrl-C now waits: never half-replaced
+            if folder.exists():
+                shutil.rmtree(folder)
+            partial.rename(folder)
     finally:
-        shutil.rmtree(partial, ignore_errors=True)
+        with deferred_interrupts():  # nor a half-removed partial folder
+            shutil.rmtree(partial, ignore_errors=True)
     return written
 
 
