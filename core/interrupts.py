@@ -12,6 +12,13 @@ Two things stand in the way of that in a plain ``main()``:
   imports the command under :func:`deferred_interrupts`, then runs its ``main``, and turns a
   KeyboardInterrupt from anywhere into ``PROGRAM: interrupted`` on stderr and status 130.
 
+- **Code that swallows it later.** Some library code still catches the KeyboardInterrupt (1 of
+  20 random SIGINTs to ``hkpd-predict`` ran to the end with exit 0 while only the imports were
+  deferred). So :func:`run_command` also installs a handler that *remembers* the SIGINT before
+  raising it, and the commands call :func:`raise_if_interrupted` at their safe points (before
+  each photo, before a folder is committed, before a report is written): a swallowed Ctrl-C is
+  raised again there.
+
 The commands' own ``main`` catch KeyboardInterrupt where they have something to clean up or to
 say (which photos are done, the checkpoint written) and return :data:`INTERRUPTED_STATUS`.
 This module imports nothing of hkpd; the commands are imported by name.
@@ -43,6 +50,22 @@ HEAVY_IMPORTS = ("torch", "cv2", "trimesh")
 handler in place (trimesh catches BaseException in its imports)."""
 
 
+_received = threading.Event()
+"""Set by every SIGINT that reached a handler of this module (see :func:`raise_if_interrupted`)."""
+
+
+def raise_if_interrupted() -> None:
+    """Raise KeyboardInterrupt if a Ctrl-C arrived since :func:`run_command` started (one that
+    some library code caught and dropped); a no-op when the command runs without it."""
+    if _received.is_set():
+        raise KeyboardInterrupt
+
+
+def _remember_and_raise(signum: int, frame: FrameType | None) -> None:
+    _received.set()
+    raise KeyboardInterrupt
+
+
 @contextmanager
 def deferred_interrupts() -> Iterator[None]:
     """Within the block a SIGINT is noted, not raised; it is raised as KeyboardInterrupt when
@@ -54,6 +77,7 @@ def deferred_interrupts() -> Iterator[None]:
 
     def note(signum: int, frame: FrameType | None) -> None:
         received.append(signum)
+        _received.set()
 
     previous = signal.signal(signal.SIGINT, note)
     try:
@@ -77,6 +101,9 @@ def interrupted(program: str, detail: str = "") -> int:
 def run_command(program: str, argv: Sequence[str] | None = None) -> int:
     """Import ``program``'s module with Ctrl-C deferred, run its ``main(argv)``; a Ctrl-C that
     reaches here gives one line and :data:`INTERRUPTED_STATUS`."""
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, _remember_and_raise) if main_thread else None
+    _received.clear()
     try:
         with deferred_interrupts():
             for name in HEAVY_IMPORTS:
@@ -84,9 +111,16 @@ def run_command(program: str, argv: Sequence[str] | None = None) -> int:
             main: Callable[[Sequence[str] | None], int] = importlib.import_module(
                 COMMANDS[program]
             ).main
-        return main(argv)
+        status = main(argv)
+        if _received.is_set() and status != INTERRUPTED_STATUS:  # swallowed after the last check
+            return interrupted(program, "after the work was done")
+        return status
     except KeyboardInterrupt:
         return interrupted(program)
+    finally:
+        _received.clear()
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
 
 
 def predict() -> int:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from hkpd import interrupts
 from hkpd.interrupts import INTERRUPTED_STATUS, deferred_interrupts
 
 LAUNCH = (
@@ -47,6 +48,25 @@ def test_without_one_the_block_leaves_the_handler_as_it_was() -> None:
     with deferred_interrupts():
         pass
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def main(argv: list[str] | None) -> int:
+    """A command whose library swallows the Ctrl-C (for run_command), then finishes."""
+    signal.setitimer(signal.ITIMER_REAL, 0.05)
+    previous = signal.signal(signal.SIGALRM, lambda *_: os.kill(os.getpid(), signal.SIGINT))
+    try:
+        swallowing_import()
+    finally:
+        signal.signal(signal.SIGALRM, previous)
+    return 0
+
+
+def test_a_ctrl_c_swallowed_by_the_command_still_ends_in_130(monkeypatch, capsys) -> None:
+    monkeypatch.setitem(interrupts.COMMANDS, "hkpd-swallow", __name__)
+    assert interrupts.run_command("hkpd-swallow", []) == INTERRUPTED_STATUS
+    assert capsys.readouterr().err == "hkpd-swallow: interrupted; after the work was done\n"
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    interrupts.raise_if_interrupted()  # forgotten once the command has returned
 
 
 @pytest.fixture(scope="module")

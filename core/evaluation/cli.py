@@ -44,7 +44,7 @@ import torch
 
 from hkpd.evaluation.concentration_scaling import ConcentrationScaled
 from hkpd.evaluation.report import markdown_table
-from hkpd.interrupts import deferred_interrupts, interrupted
+from hkpd.interrupts import deferred_interrupts, interrupted, raise_if_interrupted
 
 SYNTHETIC_COLUMNS = [
     "mpjpe_sc",
@@ -277,6 +277,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with torch.no_grad():
             text, shape = _evaluate(arguments, device)
+        raise_if_interrupted()  # a Ctrl-C some library caught during the evaluation
         with deferred_interrupts():  # Ctrl-C waits for the report and shape.json
             print(text)
             if arguments.out:

@@ -46,7 +46,7 @@ import numpy as np
 import torch
 from PIL import Image
 
-from hkpd.interrupts import deferred_interrupts, interrupted
+from hkpd.interrupts import deferred_interrupts, interrupted, raise_if_interrupted
 from hkpd.prediction.exports.combined_shape import write_combined_shape
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
 from hkpd.prediction.exports.writers import (
@@ -604,6 +604,7 @@ def _predict_all(
 
     expected = _expected_errors()
     for image, name in tqdm(photos, desc=PROG, unit="photo", file=sys.stderr):
+        raise_if_interrupted()  # a Ctrl-C some library caught during the last photo
         try:
             result = predict_into(out / name, image)
         except expected as error:
@@ -657,6 +658,7 @@ def _written_atomically(folder: Path, write: Callable[[Path], _Written]) -> _Wri
     shutil.rmtree(partial, ignore_errors=True)
     try:
         written = write(partial)
+        raise_if_interrupted()  # a Ctrl-C swallowed while writing: the partial folder goes
         with deferred_interrupts():  # Ctrl-C now waits: never half-replaced
             if folder.exists():
                 shutil.rmtree(folder)
