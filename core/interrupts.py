@@ -2,22 +2,21 @@
 
 Two things stand in the way of that in a plain ``main()``:
 
-- **Imports that swallow it.** ``import trimesh`` (and libraries like it) wraps optional imports
-  in ``except BaseException``, so a KeyboardInterrupt raised inside one is caught and the program
-  runs on as if nothing happened. :func:`deferred_interrupts` notes a SIGINT instead of raising
-  it, and raises it once the block (the imports) is over.
-- **The imports before** ``main()``. The console scripts import the command's module, and with it
-  torch, OpenCV and trimesh, before ``main`` runs. So ``hkpd-predict``, ``hkpd-eval``,
-  ``hkpd-train`` and ``hkpd-explore`` start in :func:`run_command` (the entry points below): it
-  imports the command under :func:`deferred_interrupts`, then runs its ``main``, and turns a
-  KeyboardInterrupt from anywhere into ``PROGRAM: interrupted`` on stderr and status 130.
+- **Code that swallows it.** ``import trimesh`` wraps optional imports in
+  ``except BaseException``, so a KeyboardInterrupt raised inside one is caught and the program
+  runs on as if nothing happened (2 of 13 tries in issue 44; other library code can do the
+  same). So the programs start in :func:`run_command` (their console-script entry points are
+  below), which installs a SIGINT handler that *remembers* the Ctrl-C before raising it; after
+  each heavy import, and at the commands' safe points (before each photo, before a folder is
+  committed, before a report is written), :func:`raise_if_interrupted` raises a swallowed one
+  again, and a command that returns normally after one still ends in status 130.
+- **The imports before** ``main()``: the command's module pulls in torch, OpenCV and trimesh
+  before ``main`` runs, so a Ctrl-C there would be a traceback. :func:`run_command` imports the
+  command itself and turns a KeyboardInterrupt from anywhere into ``PROGRAM: interrupted`` on
+  stderr and status 130.
 
-- **Code that swallows it later.** Some library code still catches the KeyboardInterrupt (1 of
-  20 random SIGINTs to ``hkpd-predict`` ran to the end with exit 0 while only the imports were
-  deferred). So :func:`run_command` also installs a handler that *remembers* the SIGINT before
-  raising it, and the commands call :func:`raise_if_interrupted` at their safe points (before
-  each photo, before a folder is committed, before a report is written): a swallowed Ctrl-C is
-  raised again there.
+:func:`deferred_interrupts` holds a Ctrl-C back for the few statements that must not be cut in
+half (renaming a finished folder into place, removing a partial one, writing a report).
 
 The commands' own ``main`` catch KeyboardInterrupt where they have something to clean up or to
 say (which photos are done, the checkpoint written) and return :data:`INTERRUPTED_STATUS`.
@@ -46,8 +45,8 @@ COMMANDS = {
 """Program name -> the module whose ``main(argv) -> int`` runs it."""
 
 HEAVY_IMPORTS = ("torch", "cv2", "trimesh")
-"""Imported (deferred) before a command's module, so none of them runs later with the default
-handler in place (trimesh catches BaseException in its imports)."""
+"""Imported one by one before a command's module, each followed by :func:`raise_if_interrupted`
+(trimesh catches BaseException in its imports)."""
 
 
 _received = threading.Event()
@@ -99,18 +98,18 @@ def interrupted(program: str, detail: str = "") -> int:
 
 
 def run_command(program: str, argv: Sequence[str] | None = None) -> int:
-    """Import ``program``'s module with Ctrl-C deferred, run its ``main(argv)``; a Ctrl-C that
-    reaches here gives one line and :data:`INTERRUPTED_STATUS`."""
+    """Import ``program``'s module, run its ``main(argv)``; a Ctrl-C at any moment (also one
+    that some library swallowed) gives one line and :data:`INTERRUPTED_STATUS`."""
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, _remember_and_raise) if main_thread else None
     _received.clear()
     try:
-        with deferred_interrupts():
-            for name in HEAVY_IMPORTS:
-                importlib.import_module(name)
-            main: Callable[[Sequence[str] | None], int] = importlib.import_module(
-                COMMANDS[program]
-            ).main
+        for name in HEAVY_IMPORTS:
+            importlib.import_module(name)
+            raise_if_interrupted()
+        module = importlib.import_module(COMMANDS[program])
+        raise_if_interrupted()
+        main: Callable[[Sequence[str] | None], int] = module.main
         status = main(argv)
         if _received.is_set() and status != INTERRUPTED_STATUS:  # swallowed after the last check
             return interrupted(program, "after the work was done")
