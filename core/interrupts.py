@@ -88,12 +88,9 @@ def deferred_interrupts() -> Iterator[None]:
 
 
 def interrupted(program: str, detail: str = "") -> int:
-    """Print the one line for an interrupted ``program`` and return :data:`INTERRUPTED_STATUS`.
-
-    Further Ctrl-C are ignored from here on (the program is already on its way out)."""
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-    print(f"{program}: interrupted{'; ' + detail if detail else ''}", file=sys.stderr, flush=True)
+    """Print ``PROGRAM: interrupted<detail>`` (``detail`` brings its own leading "; " or " ")
+    on stderr and return :data:`INTERRUPTED_STATUS`."""
+    print(f"{program}: interrupted{detail}", file=sys.stderr, flush=True)
     return INTERRUPTED_STATUS
 
 
@@ -112,7 +109,7 @@ def run_command(program: str, argv: Sequence[str] | None = None) -> int:
         main: Callable[[Sequence[str] | None], int] = module.main
         status = main(argv)
         if _received.is_set() and status != INTERRUPTED_STATUS:  # swallowed after the last check
-            return interrupted(program, "after the work was done")
+            return interrupted(program, " after the work was done")
         return status
     except KeyboardInterrupt:
         return interrupted(program)

@@ -64,7 +64,7 @@ def main(argv: list[str] | None) -> int:
 def test_a_ctrl_c_swallowed_by_the_command_still_ends_in_130(monkeypatch, capsys) -> None:
     monkeypatch.setitem(interrupts.COMMANDS, "hkpd-swallow", __name__)
     assert interrupts.run_command("hkpd-swallow", []) == INTERRUPTED_STATUS
-    assert capsys.readouterr().err == "hkpd-swallow: interrupted; after the work was done\n"
+    assert capsys.readouterr().err == "hkpd-swallow: interrupted after the work was done\n"
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     interrupts.raise_if_interrupted()  # forgotten once the command has returned
 

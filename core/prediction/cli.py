@@ -502,7 +502,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         predictor = _loaded_or_reported(args)
     except KeyboardInterrupt:
-        return interrupted(PROG, "no photo was predicted")
+        return interrupted(PROG, " while loading the model; no photo was predicted")
     if predictor is None:
         return 2
     model_path = args.model or "shipped model (hkpd.assets/models/hkpd_hierarchical.pt)"
@@ -535,7 +535,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         if created_out and args.out.is_dir() and not any(args.out.iterdir()):
             args.out.rmdir()  # nothing was written: leave no empty folder behind
-        return interrupted(PROG, f"{len(results)} of {len(images)} photos done; the folders "
+        return interrupted(PROG, f" after {len(results)} of {len(images)} photos; the folders "
                            "written so far are complete, nothing is half-written")  # fmt: skip
     finally:
         torch.set_grad_enabled(grad_was_enabled)

@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # during setup, or a second Ctrl-C: no checkpoint of this step
         if not launch.is_main:
             return INTERRUPTED_STATUS
-        return interrupted("hkpd-train", "--resume continues from the last checkpoint")
+        return interrupted("hkpd-train", "; --resume continues from the last checkpoint")
     if not launch.is_main:
         return 130 if result.interrupted else 0
     state = "interrupted" if result.interrupted else "finished"
