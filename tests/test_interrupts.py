@@ -123,3 +123,31 @@ def test_ctrl_c_stops_hkpd_predict_with_one_line_and_no_partial_output(photos, t
         assert left  # the reported photo stays
     if when == "import":
         assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "program, arguments",
+    [
+        ("hkpd-eval", ["missing.pt", "--count", "1"]),
+        ("hkpd-train", ["--steps", "1"]),
+        ("hkpd-explore", ["--no-browser", "--port", "0", "--demo", "synthetic"]),
+    ],
+)
+def test_ctrl_c_while_the_other_programs_start_is_one_line_and_130(tmp_path, program, arguments):
+    if program == "hkpd-train":
+        arguments = [*arguments, "--out", str(tmp_path / "run")]
+    process = subprocess.Popen(
+        [sys.executable, "-c", LAUNCH, program, *arguments],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path,
+    )  # fmt: skip
+    try:
+        time.sleep(0.5)  # in the imports (torch alone takes longer)
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    stderr = err.decode(errors="replace")
+    assert process.returncode == INTERRUPTED_STATUS, stderr
+    assert stderr.strip() == f"{program}: interrupted" and "Traceback" not in stderr
+    assert list(tmp_path.iterdir()) == []
