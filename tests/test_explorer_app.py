@@ -416,3 +416,13 @@ def test_removing_occluders_warns_nothing_and_remove_all_numbers_from_one(app):
     assert [o.ident for o in app.state.snapshot().occluders] == [1]
     assert app.panels.photo.occluders.controls(1).folder.label == "Occluder #1"
     app.clear_occluders()
+
+
+def test_cli_refuses_a_startup_photo_over_the_pixel_limit(tmp_path):
+    from test_prediction_image_input import png_header_only
+
+    photo = tmp_path / "huge.png"
+    photo.write_bytes(png_header_only(13300, 13300))
+    result = run_cli(str(photo), "--no-browser", "--port", "0")
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert "13300x13300" in result.stderr and "megapixels" in result.stderr
