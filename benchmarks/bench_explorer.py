@@ -17,7 +17,10 @@ Tables (markdown, for docs/explorer.md):
 With ``--real`` it runs the shipped ``Predictor`` (BlazePose, network, keypoint-evidence fit)
 on the shipped CC0 photo instead, with the occluder over the person's right shin, and
 ``--uploads N`` then uploads N photos (the shipped one at other sizes) and reports the server's
-resident memory after each batch of uploads.
+resident memory after each batch of uploads; then hostile uploads, all at once from four threads
+(as four browser tabs would): a 30000x30000 PNG bomb and three 13300x13300 PNGs (solid colour,
+valid files of a few hundred KB, written to a temporary folder at run time), with the peak
+resident memory sampled every 5 ms and the message each upload got.
 
 Usage: python benchmarks/bench_explorer.py [--threads 2] [--repeats 15] [--real] [--uploads 20]
 """
@@ -30,10 +33,14 @@ import io
 import os
 import platform
 import statistics
+import struct
 import sys
+import tempfile
 import threading
 import time
+import zlib
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -190,6 +197,7 @@ def main() -> None:
         app.wait_idle(120)
         if (index + 1) % 5 == 0 or index + 1 == args.uploads:
             memory.append((index + 1, resident_megabytes()))
+    hostile = hostile_uploads(app) if args.uploads else None
     app.stop()
 
     model = "shipped Predictor on the shipped photo" if args.real else "test double"
@@ -242,6 +250,113 @@ def main() -> None:
         print("|---:|---:|")
         for count, megabytes in memory:
             print(f"| {count} | {megabytes:.0f} |")
+    for title, batch in hostile or ():
+        print()
+        print(
+            f"uploads at once, {title}: resident {batch.before:.0f} MB before, peak "
+            f"{batch.peak:.0f} MB, {batch.after:.0f} MB after, {batch.seconds:.2f} s"
+        )
+        print("| upload | file KB | message |")
+        print("|---|---:|---|")
+        for name, kilobytes, message in batch.messages:
+            print(f"| {name} | {kilobytes:.0f} | {message} |")
+
+
+class HostileResult(NamedTuple):
+    """Resident MB before, peak and after; wall seconds; (name, file KB, message) per upload."""
+
+    before: float
+    peak: float
+    after: float
+    seconds: float
+    messages: list[tuple[str, float, str]]
+
+
+def hostile_uploads(app: ExplorerApp) -> list[tuple[str, HostileResult]]:
+    """Two batches, each uploaded at once: a 30000^2 bomb with three 13300^2 PNGs (refused
+    from the header), then three 7000^2 PNGs (49 Mpx, under the limit: decoded one at a time)."""
+    batches = []
+    with tempfile.TemporaryDirectory() as folder:
+        colour = (90, 120, 160)
+        big, large = solid_png(13300, 13300, colour), solid_png(7000, 7000, colour)
+        hostile = [("bomb_30000.png", solid_png(30000, 30000, colour))]
+        hostile += [(f"big_13300_{i}.png", big) for i in range(3)]
+        allowed = [(f"large_7000_{i}.png", large) for i in range(3)]
+        for title, files in (("bomb + three 13300^2", hostile), ("three 7000^2", allowed)):
+            contents = []
+            for name, data in files:
+                path = Path(folder) / name
+                path.write_bytes(data)
+                contents.append((name, path.read_bytes()))
+            batches.append((title, uploads_at_once(app, contents)))
+    return batches
+
+
+def uploads_at_once(app: ExplorerApp, contents: list[tuple[str, bytes]]) -> HostileResult:
+    """Upload ``(name, bytes)`` from one thread each; sample resident memory meanwhile."""
+    client = NotificationRecorder()
+    before, peak, stop = resident_megabytes(), [0.0], threading.Event()
+
+    def sample() -> None:
+        while not stop.is_set():
+            peak[0] = max(peak[0], resident_megabytes())
+            time.sleep(0.005)
+
+    sampler = threading.Thread(target=sample)
+    sampler.start()
+    start = time.perf_counter()
+    threads = [
+        threading.Thread(target=app.load_upload, args=(name, content, client))
+        for name, content in contents
+    ]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    app.wait_idle(120)
+    seconds = time.perf_counter() - start
+    stop.set()
+    sampler.join()
+    sizes = {name: len(content) / 1024 for name, content in contents}
+    messages = [
+        (name, sizes[name], f"{title}: {body}")
+        for title, body in client.notifications
+        for name in sizes
+        if repr(name) in body or name in body
+    ]
+    return HostileResult(before, peak[0], resident_megabytes(), seconds, sorted(messages))
+
+
+class NotificationRecorder:
+    """Stands in for a browser tab's client: keeps every notification ``(title, body)``."""
+
+    def __init__(self) -> None:
+        self.notifications: list[tuple[str, str]] = []
+        self._lock = threading.Lock()
+
+    def add_notification(self, title: str, body: str, **_: object) -> None:
+        with self._lock:
+            self.notifications.append((title, body))
+
+
+def solid_png(width: int, height: int, colour: tuple[int, int, int]) -> bytes:
+    """A valid ``width x height`` RGB PNG of one colour, compressed row by row (a few KB per
+    thousand rows), without ever holding the pixels."""
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    row = b"\x00" + bytes(colour) * width
+    compressor = zlib.compressobj(6)
+    block = row * 64
+    parts = [compressor.compress(block) for _ in range(height // 64)]
+    parts.append(compressor.compress(row * (height % 64)))
+    data = b"".join(parts) + compressor.flush()
+    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return (
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", data) + chunk(b"IEND", b"")
+    )
 
 
 def resident_megabytes() -> float:

@@ -7,25 +7,33 @@ Usage::
                  [--samples 100] [--meshes 10]
 
 The server binds to 127.0.0.1 unless ``--host`` says otherwise (anyone who can reach the port
-can drive the app and upload files, so a warning is printed). Ctrl-C stops it.
+can drive the app and upload files, so a warning is printed). A busy ``--port`` is an error;
+``--port 0`` takes any free port. Ctrl-C stops it.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import math
 import signal
+import socket
 import sys
 import threading
 import webbrowser
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.explorer.provider import PosteriorProvider, PredictorProvider
 from hkpd.explorer.state import MAX_DISPLAYED_SAMPLES, MAX_SAMPLES
+from hkpd.interrupts import interrupted
+
+if TYPE_CHECKING:
+    from hkpd.explorer.app import ExplorerApp
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -53,7 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="look for the person only inside this box (photo pixels): to pick one of several "
         "people, or when none is found",
     )
-    parser.add_argument("--port", type=int, default=8080, help="TCP port (default 8080)")
+    parser.add_argument(
+        "--port", type=int, default=8080, help="TCP port (default 8080; 0: any free port)"
+    )
     parser.add_argument("--host", default="127.0.0.1", help="interface to bind (default local)")
     parser.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
     parser.add_argument("--model", default=None, help="trained model checkpoint (default: shipped)")
@@ -94,6 +104,25 @@ def _load_photo(path: str | None, demo: str = "photo") -> np.ndarray:
         raise SystemExit(f"hkpd-explore: cannot use {path!r}: {error}") from None
 
 
+def _refuse_busy_port(host: str, port: int) -> None:
+    """Exit with a clear message when ``host:port`` cannot be bound (viser itself would
+    silently take the next free port)."""
+    try:
+        with socket.create_server((host, port)):
+            pass
+    except OSError as error:
+        if error.errno == errno.EADDRINUSE:
+            raise SystemExit(_busy_port_message(port)) from None
+        raise SystemExit(f"hkpd-explore: cannot listen on {host}:{port} ({error})") from None
+
+
+def _busy_port_message(port: int) -> str:
+    return (
+        f"hkpd-explore: port {port} is already in use; choose another with --port N, or "
+        "--port 0 for any free port"
+    )
+
+
 def _build_provider(args: argparse.Namespace) -> PosteriorProvider:
     if args.provider is not None:
         module_name, _, attribute = args.provider.partition(":")
@@ -127,17 +156,29 @@ def main(argv: Sequence[str] | None = None) -> int:
             "explorer and upload files to this machine",
             file=sys.stderr,
         )
-    image = _load_photo(args.image, args.demo)
+    if args.port != 0:
+        _refuse_busy_port(args.host, args.port)
+    try:
+        image = _load_photo(args.image, args.demo)
+    except KeyboardInterrupt:
+        return interrupted("hkpd-explore")
     person_box = None
     if args.bbox is not None:
         x0, y0, x1, y1 = args.bbox
         if not (x1 > x0 and y1 > y0) or not all(map(math.isfinite, args.bbox)):
             raise SystemExit("hkpd-explore: --bbox needs x0 y0 x1 y1 with x1 > x0 and y1 > y0")
         person_box = (x0, y0, x1, y1)
-    provider = _build_provider(args)
-
-    from hkpd.explorer.app import ExplorerApp
-
+    try:
+        provider = _build_provider(args)
+        from hkpd.explorer.app import ExplorerApp
+    except KeyboardInterrupt:
+        return interrupted("hkpd-explore")
+    # From here Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (while the
+    # server starts, inside the banner's print) cannot interrupt half-done work; a second
+    # Ctrl-C while stopping does.
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
     app = ExplorerApp(
         provider,
         image,
@@ -147,11 +188,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         num_displayed=args.meshes,
         person_box=person_box,
     )
-    # Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (even inside the
-    # banner's print) cannot interrupt half-done work; a second Ctrl-C while stopping does.
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    if stop.is_set():  # Ctrl-C while the server was starting
+        app.stop()
+        return interrupted("hkpd-explore")
+    return _serve(app, args, stop)
+
+
+def _serve(app: ExplorerApp, args: argparse.Namespace, stop: threading.Event) -> int:
+    """Serve until ``stop`` is set (Ctrl-C or SIGTERM, the normal way to stop: status 0)."""
+    if args.port not in (0, app.server.get_port()):  # taken between the check and the bind
+        app.stop()
+        raise SystemExit(_busy_port_message(args.port))
     print(f"hkpd explorer running at {app.url}  (Ctrl-C to stop)", flush=True)
     if not args.no_browser:
         webbrowser.open(app.url)

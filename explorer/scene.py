@@ -170,7 +170,7 @@ class ExplorerScene:
         later, so they must be removed by hand).
         """
         with self._lock:
-            for node in self._occluder_nodes:
+            for node in reversed(self._occluder_nodes):  # children first, then their frame
                 node.remove()
             self._occluder_nodes = []
             if self._person_node is not None:
@@ -258,7 +258,7 @@ class ExplorerScene:
         with self._lock:
             if self.placement is None:
                 return
-            for node in self._occluder_nodes:
+            for node in reversed(self._occluder_nodes):  # children first, then their frame
                 node.remove()
             self._occluder_nodes = []
             for occluder in occluders:

@@ -201,6 +201,7 @@ class ExplorerState:
         with self._lock:
             self.image_size = (int(width), int(height))
             self._occluders.clear()
+            self._next_ident = 1
             self._same_person.clear()
             self.person_box = None if person_box is None else clamp_box(person_box, width, height)
             self._prediction_version += 1
@@ -311,11 +312,12 @@ class ExplorerState:
             return True
 
     def clear_occluders(self) -> bool:
-        """Remove every occluder; False if there were none."""
+        """Remove every occluder (the next one is #1 again); False if there were none."""
         with self._lock:
             if not self._occluders:
                 return False
             self._occluders.clear()
+            self._next_ident = 1
             self._prediction_version += 1
             return True
 

@@ -1,13 +1,18 @@
-"""Checking photos that users upload through the browser before they reach the predictor."""
+"""Checking photos that users upload through the browser before they reach the predictor.
+
+Decoding is bounded: the pixel count is checked from the file's header before any pixel is
+decoded (:data:`hkpd.prediction.image_input.MAX_IMAGE_PIXELS`), and one upload is decoded at a
+time (a lock), so several large uploads arriving at once cost one decode's memory, not several.
+"""
 
 from __future__ import annotations
 
-import io
 import re
+import threading
 from pathlib import PurePath
 
 import numpy as np
-from PIL import Image, UnidentifiedImageError
+from PIL import Image
 
 from hkpd.prediction.image_input import IMAGE_SUFFIXES, ImageInputError, load_image
 
@@ -16,13 +21,16 @@ MAX_UPLOAD_BYTES = 25 * 1024 * 1024
 
 ALLOWED_SUFFIXES = IMAGE_SUFFIXES
 
+_DECODE_LOCK = threading.Lock()
+"""One decode at a time, across every tab and every upload callback thread."""
+
 
 class UploadError(ValueError):
     """An upload that cannot be used; the message is shown to the user as is."""
 
 
 def decode_upload(name: str, content: bytes) -> np.ndarray:
-    """Validate and decode an uploaded photo.
+    """Validate and decode an uploaded photo (one at a time; see the module docstring).
 
     Args:
         name: the file name the browser sent (only its suffix is used).
@@ -33,7 +41,8 @@ def decode_upload(name: str, content: bytes) -> np.ndarray:
         :func:`hkpd.prediction.load_image` does.
 
     Raises:
-        UploadError: wrong type, empty, too large, undecodable or too small.
+        UploadError: wrong type, empty, too large (bytes or pixels), undecodable (corrupt,
+            truncated, not an image, a decompression bomb, out of memory) or too small.
     """
     suffix = PurePath(name).suffix.lower()
     if suffix not in ALLOWED_SUFFIXES:
@@ -48,19 +57,24 @@ def decode_upload(name: str, content: bytes) -> np.ndarray:
             f"{MAX_UPLOAD_BYTES / 2**20:.0f} MiB"
         )
     try:
-        with Image.open(io.BytesIO(content)) as opened:
-            opened.load()
-            loaded = load_image(opened)
-    except (UnidentifiedImageError, OSError) as error:
+        with _DECODE_LOCK:
+            loaded = load_image(content)
+    except ImageInputError as error:  # the reason says what is wrong and what to do
+        if error.__cause__ is None or isinstance(error.__cause__, Image.DecompressionBombError):
+            raise UploadError(f"{name!r} cannot be used: {_plain_reason(error)}") from error
+        raise UploadError(
+            f"{name!r} could not be read as an image: {_plain_reason(error)}"
+        ) from error
+    except Exception as error:  # any other decoder failure: still a message, not a traceback
         raise UploadError(
             f"{name!r} could not be read as an image (corrupt, truncated or not a photo)"
         ) from error
-    except ImageInputError as error:  # readable, but unusable (e.g. too small)
-        raise UploadError(f"{name!r} cannot be used: {_plain_reason(error)}") from error
     return np.ascontiguousarray(loaded.pixels)
 
 
-_INTERNAL_LABELS = re.compile(r"^(array \([^)]*\) \w+|PIL image[^:]*|<[^>]*>):\s*")
+_INTERNAL_LABELS = re.compile(
+    r"^(array \([^)]*\) \w+|PIL image[^:]*|image file contents \([^)]*\)|<[^>]*>):\s*"
+)
 
 
 def _plain_reason(error: Exception) -> str:

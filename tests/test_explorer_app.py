@@ -9,7 +9,9 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -437,3 +439,77 @@ def test_the_joint_label_is_under_the_mode_body_not_on_the_uncertainty_body(app)
     lowest = -app.view.mode_vertices[:, 1].max()  # body frame y down -> world
     assert label.position[1] < lowest and abs(label.position[0]) < HEATMAP_OFFSET / 4
     assert "left elbow" in label.text and "_" not in label.text
+
+
+def test_bombs_and_huge_uploads_at_once_are_refused_with_a_message(app):
+    from test_prediction_image_input import png_header_only
+
+    client = RecordingClient()
+    size = app.state.image_size
+    uploads = [("bomb.png", png_header_only(30000, 30000))]
+    uploads += [(f"huge_{i}.png", png_header_only(13300, 13300)) for i in range(3)]
+    buffer = io.BytesIO()
+    Image.fromarray(np.random.default_rng(0).integers(0, 255, (300, 400, 3), np.uint8)).save(
+        buffer, format="JPEG"
+    )
+    uploads += [("cut.jpg", buffer.getvalue()[: len(buffer.getvalue()) // 2])]  # truncated
+    threads = [
+        threading.Thread(target=app.load_upload, args=(name, content, client))
+        for name, content in uploads
+    ]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert app.wait_idle(30)
+    assert app.state.image_size == size
+    assert [title for title, _ in client.notifications] == ["Photo not loaded"] * 5
+    messages = sorted(message for _, message in client.notifications)
+    assert all("megapixels" in message for message in messages if "huge" in message)
+    assert "megapixels" in next(m for m in messages if "bomb" in m)
+    assert "could not be read" in next(m for m in messages if "cut" in m)
+
+
+def test_a_busy_port_is_an_error_naming_it_and_suggesting_port_0():
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as taken:
+        port = taken.getsockname()[1]
+        result = run_cli("--no-browser", "--port", str(port), "--demo", "synthetic",
+                         "--provider", "test_explorer_double:OcclusionAwareDouble")  # fmt: skip
+    assert result.returncode != 0
+    assert f"port {port} is already in use" in result.stderr and "--port 0" in result.stderr
+    assert "Traceback" not in result.stderr and "running at" not in result.stdout
+
+
+def test_removing_occluders_warns_nothing_and_remove_all_numbers_from_one(app):
+    app.clear_occluders()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for offset in (0, 60, 120):
+            assert app.add_occluder((10 + offset, 10, 50 + offset, 50))
+        first = app.state.snapshot().occluders[0].ident
+        app.occluders_changed(app.state.set_occluder_enabled(first, False))
+        click = app.panels.photo.occluders.controls(first).delete
+        click.value = True  # the Delete button
+        app.clear_occluders()  # "Remove all occluders"
+        assert app.add_occluder((10, 10, 50, 50))
+        assert app.wait_idle(30)
+        app.clear_occluders()
+        assert app.wait_idle(30)
+    removal = [str(w.message) for w in caught if "already removed" in str(w.message)]
+    assert removal == []
+    assert app.add_occluder((10, 10, 50, 50))
+    assert [o.ident for o in app.state.snapshot().occluders] == [1]
+    assert app.panels.photo.occluders.controls(1).folder.label == "Occluder #1"
+    app.clear_occluders()
+
+
+def test_cli_refuses_a_startup_photo_over_the_pixel_limit(tmp_path):
+    from test_prediction_image_input import png_header_only
+
+    photo = tmp_path / "huge.png"
+    photo.write_bytes(png_header_only(13300, 13300))
+    result = run_cli(str(photo), "--no-browser", "--port", "0")
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert "13300x13300" in result.stderr and "megapixels" in result.stderr

@@ -317,3 +317,32 @@ def test_mesh_export_needs_no_scipy():
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.startswith("exported")
+
+
+def test_uploads_decode_one_at_a_time(monkeypatch):
+    import hkpd.explorer.upload as upload
+
+    running, most = [0], [0]
+    lock = threading.Lock()
+    real_load_image = upload.load_image
+
+    def slow_load_image(content):
+        with lock:
+            running[0] += 1
+            most[0] = max(most[0], running[0])
+        time.sleep(0.1)
+        try:
+            return real_load_image(content)
+        finally:
+            with lock:
+                running[0] -= 1
+
+    monkeypatch.setattr(upload, "load_image", slow_load_image)
+    threads = [
+        threading.Thread(target=decode_upload, args=(f"p{i}.png", _png(80, 60))) for i in range(3)
+    ]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert most[0] == 1

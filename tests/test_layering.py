@@ -22,6 +22,7 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         "coco_keypoints": (),
         "cpu_allocator": (),
         "devices": (),
+        "interrupts": (),
         "kinematic_tree": (),
         "uncertainty": (),
         "mirror_symmetry": ("kinematic_tree",),
@@ -34,8 +35,8 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         "conditioning": ("body", "camera_conventions", "coco_keypoints", "distributions"),
         "prediction": (
             "assets", "body", "camera_conventions", "coco_keypoints", "conditioning", "devices",
-            "distributions", "kinematic_tree", "mirror_symmetry", "network", "proxy",
-            "rendering", "uncertainty",
+            "distributions", "interrupts", "kinematic_tree", "mirror_symmetry", "network",
+            "proxy", "rendering", "uncertainty",
         ),
         # the training side
         "poses": ("body", "kinematic_tree", "mirror_symmetry"),
@@ -45,18 +46,18 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         ),
         "evaluation": (
             "alignment", "body", "camera_conventions", "coco_keypoints", "conditioning",
-            "devices", "distributions", "kinematic_tree", "network", "poses", "prediction",
-            "proxy", "synthesis", "uncertainty",
+            "devices", "distributions", "interrupts", "kinematic_tree", "network", "poses",
+            "prediction", "proxy", "synthesis", "uncertainty",
         ),
         "training": (
             "alignment", "body", "camera_conventions", "cpu_allocator", "devices",
-            "distributions", "evaluation", "kinematic_tree", "network", "poses", "proxy",
-            "synthesis",
+            "distributions", "evaluation", "interrupts", "kinematic_tree", "network", "poses",
+            "proxy", "synthesis",
         ),
         # the browser app: the model and the prediction, never the training side
         "explorer": (
             "assets", "body", "camera_conventions", "coco_keypoints", "distributions",
-            "kinematic_tree", "prediction", "rendering", "uncertainty",
+            "interrupts", "kinematic_tree", "prediction", "rendering", "uncertainty",
         ),
         ROOT_PACKAGE: ("body", "prediction"),
     }.items()

@@ -352,6 +352,26 @@ def test_usage_errors_exit_2(photos, tmp_path, capsys, arguments, message):
     assert message in capsys.readouterr().err
 
 
+def test_an_unusable_out_is_one_line_before_the_model_loads(photos, tmp_path, capsys, monkeypatch):
+    def no_model(*_):
+        raise AssertionError("the model was loaded")
+
+    monkeypatch.setattr(cli, "load_predictor", no_model)
+    a_file = tmp_path / "results.txt"
+    a_file.write_text("keep me")
+    for out, message in ((a_file, "is a file"), (a_file / "sub", f"is below the file {a_file}")):
+        code = cli.main([str(photos["person"]), "--out", str(out)])
+        err = capsys.readouterr().err
+        assert code == 2 and message in err and "Traceback" not in err
+        assert [line for line in err.splitlines() if "error" in line] == [
+            next(line for line in err.splitlines() if message in line)
+        ]
+    assert a_file.read_text() == "keep me"
+    monkeypatch.setattr(cli.os, "access", lambda path, mode: False)  # as for a non-root user
+    code = cli.main([str(photos["person"]), "--out", str(tmp_path / "new" / "deeper")])
+    assert code == 2 and f"cannot write in {tmp_path}" in capsys.readouterr().err
+
+
 def test_bbox_reaches_the_detector(photos, tmp_path, checkpoint, scene, monkeypatch, capsys):
     detectors = []
 

@@ -147,3 +147,4 @@ def test_ctrl_c_stops_cleanly(tmp_path, capsys, monkeypatch):
     assert cli.main([str(tmp_path / "a.jpg"), "--out", str(tmp_path / "out")]) == 130
     assert "interrupted after 0 of 1" in capsys.readouterr().err
     assert closed == [True]
+    assert not (tmp_path / "out").exists()  # created by the run, nothing in it: removed

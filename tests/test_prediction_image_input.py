@@ -5,6 +5,8 @@ Every test image is made here (synthetic pixels written with PIL or OpenCV); no 
 
 from __future__ import annotations
 
+import struct
+import zlib
 from pathlib import Path
 
 import cv2
@@ -14,6 +16,7 @@ import torch
 from PIL import Image, ImageOps
 
 from hkpd.prediction import (
+    MAX_IMAGE_PIXELS,
     MAX_IMAGE_SIDE,
     MIN_IMAGE_SIDE,
     ImageInputError,
@@ -220,3 +223,56 @@ def test_loaded_image_rejects_mismatched_replacement_pixels() -> None:
     assert isinstance(loaded, LoadedImage)
     with pytest.raises(ValueError, match="uint8"):
         loaded.with_pixels(np.zeros((10, 10, 3), np.uint8))
+
+
+def png_header_only(width: int, height: int) -> bytes:
+    """A PNG whose header says ``width x height`` grey pixels, followed by a little IDAT.
+
+    ``Image.open`` reads the size from the header; a few KB stand for a huge image (PIL fills
+    what the data lacks), as in a decompression bomb.
+    """
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    header = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    pixels = zlib.compress(bytes(width + 1) * 4)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", pixels)
+
+
+@pytest.mark.parametrize("side", [8000, 13300, 30000])
+def test_too_many_pixels_are_refused_from_the_header(tmp_path: Path, side: int) -> None:
+    # 64 Mpx and 177 Mpx pass PIL's own bomb check (179 Mpx); 900 Mpx is a bomb for PIL too.
+    data = png_header_only(side, side)
+    path = tmp_path / "huge.png"
+    path.write_bytes(data)
+    for source in (path, data):
+        with pytest.raises(ImageInputError, match="megapixels") as caught:
+            load_image(source)
+        assert str(MAX_IMAGE_PIXELS // 1_000_000) in str(caught.value)
+    if side * side <= Image.MAX_IMAGE_PIXELS * 2:  # below PIL's limit: our check, not PIL's
+        assert f"{side}x{side}" in str(caught.value)
+
+
+def test_pixel_limit_holds_for_arrays_and_pil_images_too() -> None:
+    side = int(MAX_IMAGE_PIXELS**0.5) + 1
+    view = np.broadcast_to(np.zeros((1, 1, 3), np.uint8), (side, side, 3))  # no memory
+    with pytest.raises(ImageInputError, match="megapixels"):
+        load_image(view)
+    with pytest.raises(ImageInputError, match="megapixels"):
+        load_image(Image.new("L", (side, side)))
+    at_limit = np.broadcast_to(np.zeros((1, 1), np.uint8), (MAX_IMAGE_PIXELS // 5000, 5000))
+    assert load_image(at_limit).original_size == (5000, MAX_IMAGE_PIXELS // 5000)
+
+
+def test_image_bytes_load_like_the_file(tmp_path: Path) -> None:
+    pixels = asymmetric_rgb()
+    path = tmp_path / "photo.png"
+    save_with_orientation(path, pixels, 6)
+    from_bytes = load_image(path.read_bytes())
+    np.testing.assert_array_equal(from_bytes.pixels, load_image(path).pixels)
+    with pytest.raises(ImageInputError, match="empty"):
+        load_image(b"")
+    with pytest.raises(ImageInputError, match="corrupt or truncated"):
+        load_image(path.read_bytes()[:200])

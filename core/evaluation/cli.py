@@ -44,6 +44,7 @@ import torch
 
 from hkpd.evaluation.concentration_scaling import ConcentrationScaled
 from hkpd.evaluation.report import markdown_table
+from hkpd.interrupts import deferred_interrupts, interrupted, raise_if_interrupted
 
 SYNTHETIC_COLUMNS = [
     "mpjpe_sc",
@@ -276,14 +277,18 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with torch.no_grad():
             text, shape = _evaluate(arguments, device)
-        print(text)
-        if arguments.out:
-            _write_atomically(arguments.out, text)
-        if shape is not None:
-            _write_atomically(shape_json_path(arguments.out), shape_json_text(shape))
+        raise_if_interrupted()  # a Ctrl-C some library caught during the evaluation
+        with deferred_interrupts():  # Ctrl-C waits for the report and shape.json
+            print(text)
+            if arguments.out:
+                _write_atomically(arguments.out, text)
+            if shape is not None:
+                _write_atomically(shape_json_path(arguments.out), shape_json_text(shape))
     except (OSError, ValueError) as error:  # CheckpointError is a ValueError
         print(f"hkpd-eval: error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # during the evaluation; once writing, that finishes first
+        return interrupted("hkpd-eval")
     return 0
 
 
@@ -304,7 +309,7 @@ def _write_atomically(path: Path, text: str) -> None:
     try:
         partial.write_text(text)
         partial.replace(path)
-    except OSError:
+    except BaseException:  # also Ctrl-C: no half file stays behind
         partial.unlink(missing_ok=True)
         raise
 

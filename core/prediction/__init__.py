@@ -34,6 +34,7 @@ from hkpd.prediction.detection.keypoint_detector import (
     NoPersonFoundError,
 )
 from hkpd.prediction.image_input import (
+    MAX_IMAGE_PIXELS,
     MAX_IMAGE_SIDE,
     MIN_IMAGE_SIDE,
     ImageInputError,
@@ -50,6 +51,7 @@ from hkpd.prediction.shape_combination import CombinedShape, combine_shapes
 __all__ = [
     "BOX_CONFIDENCE_THRESHOLD",
     "COCO_FROM_BLAZEPOSE",
+    "MAX_IMAGE_PIXELS",
     "MAX_IMAGE_SIDE",
     "MIN_IMAGE_SIDE",
     "BodyMeshes",

@@ -46,6 +46,7 @@ import numpy as np
 import torch
 from PIL import Image
 
+from hkpd.interrupts import deferred_interrupts, interrupted, raise_if_interrupted
 from hkpd.prediction.exports.combined_shape import write_combined_shape
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
 from hkpd.prediction.exports.writers import (
@@ -497,7 +498,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: error: {len(taken)} result folder(s) already exist ({shown}); pass "
               "--overwrite to replace them, or choose another --out", file=sys.stderr)  # fmt: skip
         return 2
-    predictor = _loaded_or_reported(args)
+    created_out = not args.out.exists()
+    try:
+        predictor = _loaded_or_reported(args)
+    except KeyboardInterrupt:
+        return interrupted(PROG, " while loading the model; no photo was predicted")
     if predictor is None:
         return 2
     model_path = args.model or "shipped model (hkpd.assets/models/hkpd_hierarchical.pt)"
@@ -528,9 +533,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.same_person:
             combined = _combine_into(args.out / combined_name, predictor, results, formats, scale)
     except KeyboardInterrupt:
-        print(f"\n{PROG}: interrupted after {len(results)} of {len(images)} photos; the "
-              "folders written so far are complete", file=sys.stderr)  # fmt: skip
-        return 130
+        if created_out and args.out.is_dir() and not any(args.out.iterdir()):
+            args.out.rmdir()  # nothing was written: leave no empty folder behind
+        return interrupted(PROG, f" after {len(results)} of {len(images)} photos; the folders "
+                           "written so far are complete, nothing is half-written")  # fmt: skip
     finally:
         torch.set_grad_enabled(grad_was_enabled)
         closer = getattr(predictor, "close", None)
@@ -549,7 +555,28 @@ def _checked_options(
         raise UsageError(f"--samples must be >= 0, got {args.samples}")
     if args.uncertainty_samples < 2:
         raise UsageError(f"--uncertainty-samples must be >= 2, got {args.uncertainty_samples}")
+    check_out_folder(args.out)
     return formats, bbox
+
+
+def check_out_folder(out: Path) -> None:
+    """Refuse an ``--out`` that cannot become a writable folder, before the model loads.
+
+    Raises:
+        UsageError: ``out`` (or a folder above it) is a file, or the nearest existing folder
+            above it cannot be written.
+    """
+    existing = out
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        where = "is a file" if existing == out else f"is below the file {existing}"
+        raise UsageError(f"--out {out} {where}; give the path of a folder (new or existing)")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise UsageError(
+            f"--out {out}: cannot write in {existing} (permission denied); choose a folder "
+            "you can write to"
+        )
 
 
 def _loaded_or_reported(args: argparse.Namespace) -> Predictor | None:
@@ -577,6 +604,7 @@ def _predict_all(
 
     expected = _expected_errors()
     for image, name in tqdm(photos, desc=PROG, unit="photo", file=sys.stderr):
+        raise_if_interrupted()  # a Ctrl-C some library caught during the last photo
         try:
             result = predict_into(out / name, image)
         except expected as error:
@@ -630,11 +658,14 @@ def _written_atomically(folder: Path, write: Callable[[Path], _Written]) -> _Wri
     shutil.rmtree(partial, ignore_errors=True)
     try:
         written = write(partial)
-        if folder.exists():
-            shutil.rmtree(folder)
-        partial.rename(folder)
+        raise_if_interrupted()  # a Ctrl-C swallowed while writing: the partial folder goes
+        with deferred_interrupts():  # Ctrl-C now waits: never half-replaced
+            if folder.exists():
+                shutil.rmtree(folder)
+            partial.rename(folder)
     finally:
-        shutil.rmtree(partial, ignore_errors=True)
+        with deferred_interrupts():  # nor a half-removed partial folder
+            shutil.rmtree(partial, ignore_errors=True)
     return written
 
 

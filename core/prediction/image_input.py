@@ -1,7 +1,7 @@
 """Read a photo from whatever the user has into one ``(H, W, 3)`` uint8 RGB array.
 
-:func:`load_image` accepts a file path, a numpy array or a PIL image and returns a
-:class:`LoadedImage`: the RGB pixels the predictor works on plus what is needed to map
+:func:`load_image` accepts a file path, a file's bytes, a numpy array or a PIL image and
+returns a :class:`LoadedImage`: the RGB pixels the predictor works on plus what is needed to map
 coordinates back to the *original* photo.
 
 What it does to the input, in order:
@@ -15,9 +15,11 @@ What it does to the input, in order:
    image viewers show them, because transparent pixels of cut-outs often hold arbitrary colours.
 3. **Bit depth**: 16-bit images (uint16 arrays, 16-bit PNG/TIFF, also colour ones, which PIL
    alone would truncate) are scaled with rounding, ``round(x * 255 / 65535)``.
-4. **Size**: images whose shorter side is below :data:`MIN_IMAGE_SIDE` are refused; images whose
-   longer side exceeds ``max_side`` (:data:`MAX_IMAGE_SIDE` by default) are downscaled with area
-   averaging so that it equals ``max_side``. :meth:`LoadedImage.to_original` maps points back.
+4. **Size**: images with more than :data:`MAX_IMAGE_PIXELS` pixels are refused (files before
+   their pixels are decoded: the size comes from the header); images whose shorter side is below
+   :data:`MIN_IMAGE_SIDE` are refused; images whose longer side exceeds ``max_side``
+   (:data:`MAX_IMAGE_SIDE` by default) are downscaled with area averaging so that it equals
+   ``max_side``. :meth:`LoadedImage.to_original` maps points back.
 
 Pixel coordinates follow :mod:`hkpd.camera_conventions`: ``(u, v)``, u right, v down, pixel
 centres at integer coordinates.
@@ -43,6 +45,13 @@ The network only sees a 256-pixel crop, so more resolution buys nothing but memo
 
 MIN_IMAGE_SIDE = 32
 """Smallest accepted shorter side, in pixels: below this there is no person to see."""
+
+MAX_IMAGE_PIXELS = 50_000_000
+"""Largest accepted image, in pixels (width x height), for files, bytes, arrays and PIL images.
+50 Mpx holds every ordinary photo (a 45 Mpx full-frame camera is 8192x5464; phones save 12-50
+Mpx) while its decode stays bounded: about 200 MB for RGBA pixels, against 2.4 GB for the
+177 Mpx that PIL's own bomb check (179 Mpx) still lets through. Files are checked from their
+header, before any pixel is decoded."""
 
 _EXIF_ORIENTATION_TAG = 0x0112
 
@@ -114,14 +123,15 @@ class LoadedImage:
 
 
 def load_image(
-    image: str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage,
+    image: str | os.PathLike[str] | bytes | np.ndarray | Image.Image | LoadedImage,
     max_side: int = MAX_IMAGE_SIDE,
 ) -> LoadedImage:
     """Load a photo as ``(H, W, 3)`` uint8 RGB (see the module docstring for every step).
 
     Args:
         image: a path to an image file (anything PIL reads: JPEG, PNG, TIFF, WebP, BMP, ...);
-            a numpy array ``(H, W)`` grayscale, ``(H, W, 1)``, ``(H, W, 2)`` grayscale + alpha,
+            the bytes of such a file (an upload); a numpy array ``(H, W)`` grayscale,
+            ``(H, W, 1)``, ``(H, W, 2)`` grayscale + alpha,
             ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA, of dtype uint8 or uint16 (arrays are taken as
             RGB, not OpenCV's BGR); a PIL image; or an already loaded image (returned as is when
             it fits ``max_side``).
@@ -132,7 +142,8 @@ def load_image(
 
     Raises:
         ImageInputError: missing or unreadable file, corrupt or truncated data, not an image,
-            unsupported array shape or dtype, or an image smaller than :data:`MIN_IMAGE_SIDE`.
+            unsupported array shape or dtype, more than :data:`MAX_IMAGE_PIXELS` pixels (checked
+            before decoding), or an image smaller than :data:`MIN_IMAGE_SIDE`.
     """
     if max_side < MIN_IMAGE_SIDE:
         raise ValueError(f"max_side must be at least {MIN_IMAGE_SIDE}, got {max_side}")
@@ -142,17 +153,23 @@ def load_image(
         return _fit(image.pixels, image.source, max_side, image.original_size)
     if isinstance(image, (str, os.PathLike)):
         source = str(image)
-        rgb = _read_file(Path(image))
+        rgb = _decode(_read_file(Path(image)), source)
+    elif isinstance(image, (bytes, bytearray, memoryview)):
+        source = f"image file contents ({len(image)} bytes)"
+        rgb = _decode(bytes(image), source)
     elif isinstance(image, Image.Image):
         source = f"PIL image ({image.mode}, {image.width}x{image.height})"
+        check_pixel_count(image.size, source)
         rgb = _rgb8_from_pil(ImageOps.exif_transpose(image), source)
     elif isinstance(image, np.ndarray):
         source = f"array {image.shape} {image.dtype}"
+        if image.ndim >= 2:
+            check_pixel_count((image.shape[1], image.shape[0]), source)
         rgb = _rgb8_from_array(image, source)
     else:
         raise ImageInputError(
-            f"cannot read an image from a {type(image).__name__}; pass a file path, a numpy "
-            "array (H, W, 3) uint8 RGB, or a PIL image"
+            f"cannot read an image from a {type(image).__name__}; pass a file path, the file's "
+            "bytes, a numpy array (H, W, 3) uint8 RGB, or a PIL image"
         )
     height, width = rgb.shape[:2]
     if min(width, height) < MIN_IMAGE_SIDE:
@@ -176,8 +193,23 @@ def _fit(
     return LoadedImage(np.ascontiguousarray(rgb), original_size, source)
 
 
-def _read_file(path: Path) -> np.ndarray:
-    """Decode an image file into ``(H, W, 3)`` uint8 RGB with EXIF orientation applied."""
+def check_pixel_count(size: tuple[int, int], source: str) -> None:
+    """Refuse an image of ``size = (width, height)`` with more than :data:`MAX_IMAGE_PIXELS`.
+
+    Raises:
+        ImageInputError: naming ``source``, its size and the limit.
+    """
+    width, height = int(size[0]), int(size[1])
+    if width * height > MAX_IMAGE_PIXELS:
+        raise ImageInputError(
+            f"{source}: the image is {width}x{height} = {width * height / 1e6:.0f} megapixels; "
+            f"at most {MAX_IMAGE_PIXELS / 1e6:.0f} megapixels are accepted (a safe decode). "
+            f"Downscale it first, e.g. to at most {MAX_IMAGE_SIDE} pixels per side."
+        )
+
+
+def _read_file(path: Path) -> bytes:
+    """The contents of an image file (not yet decoded)."""
     if not path.exists():
         raise ImageInputError(
             f"{path}: no such file; check the path (relative paths start at {Path.cwd()})"
@@ -185,51 +217,65 @@ def _read_file(path: Path) -> np.ndarray:
     if path.is_dir():
         raise ImageInputError(f"{path} is a directory; pass the path of one image file")
     try:
-        data = path.read_bytes()
+        return path.read_bytes()
     except OSError as error:
         raise ImageInputError(f"{path}: cannot read the file ({error})") from error
+
+
+def _decode(data: bytes, source: str) -> np.ndarray:
+    """Decode an image file's bytes into ``(H, W, 3)`` uint8 RGB with EXIF orientation applied.
+
+    The pixel count is checked from the header (``Image.open`` reads only the header) before
+    anything is decoded; every decoding failure becomes an :class:`ImageInputError`.
+    """
     if not data:
-        raise ImageInputError(f"{path}: the file is empty; it is not an image")
+        raise ImageInputError(f"{source}: the file is empty; it is not an image")
     try:
         with Image.open(io.BytesIO(data)) as pil:
+            check_pixel_count(pil.size, source)
             # Read the raw mode first: getexif() may decode the image and clear the tiles.
             raw_mode = pil.tile[0][3] if pil.tile and isinstance(pil.tile[0][3], str) else ""
             orientation = pil.getexif().get(_EXIF_ORIENTATION_TAG, 1)
             pil.load()
             if pil.mode in ("RGB", "RGBA") and ";16" in raw_mode:
                 # PIL keeps only the high byte of 16-bit colour; decode the full depth with OpenCV.
-                rgb = _rgb8_from_array(_decode_16bit_colour(data, path), str(path))
+                rgb = _rgb8_from_array(_decode_16bit_colour(data, source), source)
             else:
-                rgb = _rgb8_from_pil(pil, str(path))
+                rgb = _rgb8_from_pil(pil, source)
     except (UnidentifiedImageError, Image.DecompressionBombError) as error:
-        raise ImageInputError(_unreadable_message(path, error)) from error
+        raise ImageInputError(_unreadable_message(source, error)) from error
+    except MemoryError as error:
+        raise ImageInputError(
+            f"{source}: not enough memory to decode this image; downscale it first"
+        ) from error
     except (OSError, SyntaxError, ValueError, EOFError) as error:
         if isinstance(error, ImageInputError):
             raise
         raise ImageInputError(
-            f"{path}: the image data is corrupt or truncated ({error}); re-export or re-download "
-            "the photo"
+            f"{source}: the image data is corrupt or truncated ({error}); re-export or "
+            "re-download the photo"
         ) from error
     return _apply_orientation(rgb, orientation)
 
 
-def _unreadable_message(path: Path, error: Exception) -> str:
+def _unreadable_message(source: str, error: Exception) -> str:
     if isinstance(error, Image.DecompressionBombError):
         return (
-            f"{path}: the image has too many pixels for a safe decode ({error}); downscale it "
-            "to at most a few thousand pixels per side first"
+            f"{source}: the image has far more than the {MAX_IMAGE_PIXELS / 1e6:.0f} megapixels "
+            f"accepted ({error}); downscale it first, e.g. to at most {MAX_IMAGE_SIDE} pixels "
+            "per side"
         )
     return (
-        f"{path}: not a readable image file (PIL cannot identify its format); pass a JPEG, "
+        f"{source}: not a readable image file (PIL cannot identify its format); pass a JPEG, "
         "PNG, TIFF, WebP or BMP photo (convert HEIC/HEIF phone photos to JPEG first)"
     )
 
 
-def _decode_16bit_colour(data: bytes, path: Path) -> np.ndarray:
+def _decode_16bit_colour(data: bytes, source: str) -> np.ndarray:
     """``(H, W, 3|4)`` uint16 RGB(A) from an encoded 16-bit colour image."""
     decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
     if decoded is None or decoded.ndim != 3:
-        raise ImageInputError(f"{path}: cannot decode this 16-bit colour image")
+        raise ImageInputError(f"{source}: cannot decode this 16-bit colour image")
     code = cv2.COLOR_BGRA2RGBA if decoded.shape[2] == 4 else cv2.COLOR_BGR2RGB
     return cv2.cvtColor(decoded, code)
 

@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hkpd.interrupts import INTERRUPTED_STATUS, interrupted
 from hkpd.training.config import TrainConfig, add_config_arguments, config_from_arguments
 
 if TYPE_CHECKING:
@@ -81,10 +82,10 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError, FloatingPointError) as error:
         _report(error, launch, during_setup)
         return 2
-    except KeyboardInterrupt:  # a second Ctrl-C under torchrun: no checkpoint of this step
-        if launch.is_main:
-            print("hkpd-train: stopped at once; --resume continues from the last checkpoint")
-        return 130
+    except KeyboardInterrupt:  # during setup, or a second Ctrl-C: no checkpoint of this step
+        if not launch.is_main:
+            return INTERRUPTED_STATUS
+        return interrupted("hkpd-train", "; --resume continues from the last checkpoint")
     if not launch.is_main:
         return 130 if result.interrupted else 0
     state = "interrupted" if result.interrupted else "finished"

@@ -1,0 +1,153 @@
+"""Ctrl-C: never swallowed by imports that catch BaseException, and hkpd-predict stopped at a few
+moments (during the imports, once the model is loaded, between photos) with one line, status
+130 and no partial output. The shipped model and the shipped CC0 photo; no shared data."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from hkpd import interrupts
+from hkpd.interrupts import INTERRUPTED_STATUS, deferred_interrupts
+
+LAUNCH = (
+    "import sys; from hkpd.interrupts import run_command; "
+    "sys.exit(run_command(sys.argv[1], sys.argv[2:]))"
+)
+"""What the installed ``hkpd-predict`` (``hkpd.interrupts:predict``) runs, with the program
+name as the first argument."""
+
+
+def swallowing_import() -> None:
+    """What trimesh's imports do: ``except BaseException`` around something slow."""
+    try:  # noqa: SIM105 (written out as trimesh writes it)
+        time.sleep(0.5)
+    except BaseException:
+        pass
+
+
+def test_a_sigint_inside_a_swallowing_import_is_raised_after_it() -> None:
+    with pytest.raises(KeyboardInterrupt), deferred_interrupts():
+        signal.setitimer(signal.ITIMER_REAL, 0.1)
+        previous = signal.signal(signal.SIGALRM, lambda *_: os.kill(os.getpid(), signal.SIGINT))
+        try:
+            swallowing_import()
+        finally:
+            signal.signal(signal.SIGALRM, previous)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_without_one_the_block_leaves_the_handler_as_it_was() -> None:
+    with deferred_interrupts():
+        pass
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def main(argv: list[str] | None) -> int:
+    """A command whose library swallows the Ctrl-C (for run_command), then finishes."""
+    signal.setitimer(signal.ITIMER_REAL, 0.05)
+    previous = signal.signal(signal.SIGALRM, lambda *_: os.kill(os.getpid(), signal.SIGINT))
+    try:
+        swallowing_import()
+    finally:
+        signal.signal(signal.SIGALRM, previous)
+    return 0
+
+
+def test_a_ctrl_c_swallowed_by_the_command_still_ends_in_130(monkeypatch, capsys) -> None:
+    monkeypatch.setitem(interrupts.COMMANDS, "hkpd-swallow", __name__)
+    assert interrupts.run_command("hkpd-swallow", []) == INTERRUPTED_STATUS
+    assert capsys.readouterr().err == "hkpd-swallow: interrupted after the work was done\n"
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    interrupts.raise_if_interrupted()  # forgotten once the command has returned
+
+
+@pytest.fixture(scope="module")
+def photos(tmp_path_factory) -> Path:
+    from hkpd.explorer.demo_photo import shipped_photo
+
+    folder = tmp_path_factory.mktemp("photos")
+    for index in range(4):
+        shutil.copy(shipped_photo(), folder / f"photo_{index}.jpg")
+    return folder
+
+
+def interrupt_predict(photos: Path, out: Path, when: str) -> subprocess.CompletedProcess:
+    """Run hkpd-predict on ``photos`` and send one SIGINT ``when``: "import" (0.3 s after the
+    start), "loaded" (the progress bar appears: the model is loaded, the first photo under
+    way), "between" (the first photo is reported)."""
+    command = [sys.executable, "-c", LAUNCH, "hkpd-predict", str(photos), "--out", str(out),
+               "--samples", "1", "--uncertainty-samples", "10"]  # fmt: skip
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ}
+    )
+    try:
+        if when == "import":
+            time.sleep(0.3)
+        else:
+            stream = process.stderr if when == "loaded" else process.stdout
+            wanted = b"hkpd-predict:" if when == "loaded" else b"person at bbox"
+            seen = b""
+            while wanted not in seen and process.poll() is None:
+                seen += os.read(stream.fileno(), 256)
+        process.send_signal(signal.SIGINT)
+        out_bytes, err_bytes = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    return subprocess.CompletedProcess(command, process.returncode, out_bytes, err_bytes)
+
+
+@pytest.mark.parametrize("when", ["import", "loaded", "between"])
+def test_ctrl_c_stops_hkpd_predict_with_one_line_and_no_partial_output(photos, tmp_path, when):
+    out = tmp_path / "out"
+    result = interrupt_predict(photos, out, when)
+    stderr = result.stderr.decode(errors="replace")
+    assert result.returncode == INTERRUPTED_STATUS, stderr
+    assert "Traceback" not in stderr
+    lines = [line for line in stderr.replace("\r", "\n").splitlines() if "interrupted" in line]
+    assert len(lines) == 1 and lines[0].startswith("hkpd-predict: interrupted"), stderr
+    assert stderr.rstrip().endswith(lines[0])
+    left = sorted(path.name for path in out.iterdir()) if out.exists() else []
+    assert not any(name.startswith(".") for name in left)  # no .photo_N.partial folder
+    for name in left:  # every folder there is a finished one
+        assert (out / name / "summary.json").is_file() and (out / name / "overview.png").is_file()
+    if when == "between":
+        assert left  # the reported photo stays
+    if when == "import":
+        assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "program, arguments",
+    [
+        ("hkpd-eval", ["missing.pt", "--count", "1"]),
+        ("hkpd-train", ["--steps", "1"]),
+        ("hkpd-explore", ["--no-browser", "--port", "0", "--demo", "synthetic"]),
+    ],
+)
+def test_ctrl_c_while_the_other_programs_start_is_one_line_and_130(tmp_path, program, arguments):
+    if program == "hkpd-train":
+        arguments = [*arguments, "--out", str(tmp_path / "run")]
+    process = subprocess.Popen(
+        [sys.executable, "-c", LAUNCH, program, *arguments],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path,
+    )  # fmt: skip
+    try:
+        time.sleep(0.5)  # in the imports (torch alone takes longer)
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    stderr = err.decode(errors="replace")
+    assert process.returncode == INTERRUPTED_STATUS, stderr
+    assert stderr.strip() == f"{program}: interrupted" and "Traceback" not in stderr
+    assert list(tmp_path.iterdir()) == []
