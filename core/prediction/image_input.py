@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import io
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -231,7 +232,10 @@ def _decode(data: bytes, source: str) -> np.ndarray:
     if not data:
         raise ImageInputError(f"{source}: the file is empty; it is not an image")
     try:
-        with Image.open(io.BytesIO(data)) as pil:
+        with warnings.catch_warnings():  # our own, lower limit is checked next
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            pil = Image.open(io.BytesIO(data))
+        with pil:
             check_pixel_count(pil.size, source)
             # Read the raw mode first: getexif() may decode the image and clear the tiles.
             raw_mode = pil.tile[0][3] if pil.tile and isinstance(pil.tile[0][3], str) else ""
