@@ -3,7 +3,9 @@
 :func:`condition_on_keypoints` runs the batched Levenberg-Marquardt fit
 (:mod:`hkpd.conditioning.levenberg_marquardt`) of pose, global rotation, camera and shape to
 the evidence, from every start (e.g. the network run on the crop and on the crop rotated
-upright), keeps the start with the lowest negative log posterior, and builds the posterior in
+upright) and, with ``EvidenceConfig.facings`` 2 (the default), from each start turned 180°
+about the body's vertical axis (:mod:`hkpd.conditioning.facing`), all in one batch; keeps the
+start with the lowest negative log posterior, and builds the posterior in
 the network's families from the fit's Gauss-Newton Hessian ``H``. The evidence is a list of
 terms (:class:`~hkpd.conditioning.EvidenceTerm`): the keypoints' :class:`KeypointTerm`, then
 any ``extra_terms``; the Laplace step reads only ``H`` and the fitted state, so it counts every
@@ -26,6 +28,7 @@ Nothing here raises for a failed fit: a :class:`KeypointFit` without ``condition
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -35,6 +38,7 @@ import torch
 from hkpd.body import BodyModel
 from hkpd.conditioning.config import EvidenceConfig
 from hkpd.conditioning.evidence_term import EvidenceTerm
+from hkpd.conditioning.facing import with_facings
 from hkpd.conditioning.fit_objective import FitObjective
 from hkpd.conditioning.fit_state import CAMERA, GLOBAL, NUM_BODY_JOINTS, POSE, SHAPE
 from hkpd.conditioning.keypoint_evidence import KeypointEvidence
@@ -52,9 +56,13 @@ class KeypointFit:
         conditioned: the posterior's parameters, or None when the fit failed or was skipped.
         reason: why ``conditioned`` is None ("" when it is not).
         evidence_count: number of evidence keypoints.
-        start: index of the start that won (-1 when the fit did not run).
-        costs: ``(B,)`` final negative log posterior of each start (empty when it did not run).
-        initial_costs: ``(B,)`` the starts' costs before the fit.
+        start: index of the given start that won (-1 when the fit did not run).
+        turned: the winner is that start turned 180° about the body's vertical axis
+            (:mod:`hkpd.conditioning.facing`), not the start as given.
+        costs: ``(F·B,)`` final negative log posterior of each fitted start: the ``B`` given
+            ones, then (``EvidenceConfig.facings`` 2) their half-turned copies (None when the
+            fit did not run); :attr:`cost` is the winner's.
+        initial_costs: ``(F·B,)`` the fitted starts' costs before the fit.
         iterations: Levenberg-Marquardt iterations run.
         converged: the winning start met the tolerance within the iteration limit.
         keypoint_weights: ``(17,)`` robust weights of the winning start's keypoints (1 = fully
@@ -68,6 +76,7 @@ class KeypointFit:
     reason: str
     evidence_count: int
     start: int = -1
+    turned: bool = False
     costs: torch.Tensor | None = None
     initial_costs: torch.Tensor | None = None
     iterations: int = 0
@@ -79,6 +88,14 @@ class KeypointFit:
     @property
     def succeeded(self) -> bool:
         return self.conditioned is not None
+
+    @property
+    def cost(self) -> float:
+        """The winning start's final negative log posterior (NaN when the fit did not run)."""
+        if self.costs is None or self.start < 0:
+            return math.nan
+        given = self.costs.shape[0] // (2 if self.turned else 1)
+        return float(self.costs[self.start + (given if self.turned else 0)])
 
 
 def fit_evidence(
@@ -173,7 +190,8 @@ def condition_on_keypoints(
 
     Args:
         body: float64 body model (``BodyModel().double()``).
-        starts: B >= 1 network predictions (priors and starting points).
+        starts: B >= 1 network predictions (priors and starting points); with
+            ``config.facings`` 2 each is also fitted turned 180° about the body's vertical axis.
         evidence: the observed keypoints in the crop the starts' cameras refer to.
         config: the evidence settings (defaults: :class:`EvidenceConfig`).
         extra_terms: evidence beyond the keypoints (:class:`EvidenceTerm`), weighed in the same
@@ -201,9 +219,9 @@ def condition_on_keypoints(
         return KeypointFit(None, "the network's prediction is not finite", count)
     with torch.no_grad():
         terms = (KeypointTerm(evidence, config), *extra_terms)
-        result = fit_evidence(body, starts64, terms, config)
+        result = fit_evidence(body, with_facings(starts64, config.facings), terms, config)
         costs = torch.where(torch.isfinite(result.cost), result.cost, torch.inf)
-        best = int(costs.argmin())
+        best = int(costs.argmin())  # the first of equal costs: the start as given
         conditioned = (
             laplace_posterior(result, best, config.joint_spread, config.rigid_spread)
             if torch.isfinite(costs[best])
@@ -211,7 +229,8 @@ def condition_on_keypoints(
         )
     common = {
         "evidence_count": count,
-        "start": best,
+        "start": best % starts64.camera.shape[0],
+        "turned": best >= starts64.camera.shape[0],
         "costs": result.cost,
         "initial_costs": result.initial_cost,
         "iterations": result.iterations,

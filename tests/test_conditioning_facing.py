@@ -1,0 +1,124 @@
+"""Both facings of the fit (issue 42): a body seen from behind is fitted facing away."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import roma
+import torch
+
+from hkpd.body import BodyModel
+from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT, ndc_to_pixels
+from hkpd.conditioning import (
+    EvidenceConfig,
+    KeypointEvidence,
+    condition_on_keypoints,
+    faces_camera,
+    half_turned,
+)
+from hkpd.conditioning.facing import HALF_TURN_ABOUT_UP, with_facings
+from hkpd.distributions import BodyDistribution, KinematicMatrixFisher
+from hkpd.kinematic_tree import BODY_PARENTS
+
+SIZE = 128
+COOK_PHOTO = Path("/work/shared/data/coco_mini/val2017/000000397133.jpg")
+
+
+@pytest.fixture(scope="module")
+def body64() -> BodyModel:
+    return BodyModel().double()
+
+
+def _project(body, pose, orient, camera, betas) -> torch.Tensor:
+    keypoints, joints = body.posed_keypoints(betas, pose[None], orient[None])
+    relative = keypoints[0] - joints[0, :1]
+    return ndc_to_pixels(camera[0] * (relative[:, :2] + camera[1:]), SIZE)
+
+
+@pytest.fixture(scope="module")
+def seen_from_behind(body64):
+    """A standing body turned away from the camera, its exact keypoints, and a start that
+    reads the same pose facing the camera (as the network reads most people)."""
+    generator = torch.Generator().manual_seed(5)
+    pose = roma.rotvec_to_rotmat(0.25 * torch.randn(23, 3, generator=generator).double())
+    away = FRONTAL_GLOBAL_ORIENT.double() @ HALF_TURN_ABOUT_UP.double()
+    camera = torch.tensor([0.95, 0.02, 0.05], dtype=torch.float64)
+    betas = 0.5 * torch.randn(1, 10, generator=generator).double()
+    keypoints = _project(body64, pose, away, camera, betas)
+    offset = roma.rotvec_to_rotmat(0.1 * torch.randn(23, 3, generator=generator).double())
+    start = BodyDistribution(
+        F=(10.0 * (pose @ offset))[None],
+        shape_mean=torch.zeros(1, 10).double(),
+        shape_std=torch.ones(1, 10).double(),
+        global_orient=FRONTAL_GLOBAL_ORIENT.double()[None],
+        camera=torch.tensor([[0.9, 0.0, 0.0]]).double(),
+    )
+    evidence = KeypointEvidence(keypoints, torch.ones(17, dtype=torch.bool), SIZE)
+    return {"start": start, "evidence": evidence, "keypoints": keypoints}
+
+
+def _away(global_orient: torch.Tensor) -> float:
+    """Cosine between the body's forward axis and the camera's viewing direction (1: facing
+    straight away from the camera, -1: facing it)."""
+    return float(global_orient[2, 2])
+
+
+def _reprojection(body64, fit, keypoints) -> torch.Tensor:
+    c = fit.conditioned
+    pose = KinematicMatrixFisher(c.F[None], BODY_PARENTS).mode[0]
+    points = _project(body64, pose, c.global_orient, c.camera, c.shape_mean[None])
+    return (points - keypoints).norm(dim=-1)
+
+
+def test_half_turn_turns_a_frontal_body_away_and_back() -> None:
+    frontal = FRONTAL_GLOBAL_ORIENT.double()
+    start = BodyDistribution(
+        torch.eye(3).double().expand(1, 23, 3, 3), torch.zeros(1, 10).double(),
+        torch.ones(1, 10).double(), frontal[None], torch.tensor([[1.0, 0.1, 0.2]]).double(),
+    )  # fmt: skip
+    turned = half_turned(start)
+    assert bool(faces_camera(frontal)) and not bool(faces_camera(turned.global_orient[0]))
+    assert torch.allclose(half_turned(turned).global_orient, start.global_orient)
+    assert torch.equal(turned.F, start.F) and torch.equal(turned.camera, start.camera)
+    both = with_facings(start, 2)
+    assert both.camera.shape[0] == 2 and torch.equal(both.global_orient[1], turned.global_orient[0])
+    assert with_facings(start, 1) is start
+    with pytest.raises(ValueError, match="facings must be 1"):
+        with_facings(start, 3)
+    with pytest.raises(ValueError, match="EvidenceConfig.facings"):
+        EvidenceConfig(facings=0)
+
+
+def test_a_body_seen_from_behind_is_fitted_facing_away(body64, seen_from_behind) -> None:
+    scene = seen_from_behind
+    one = condition_on_keypoints(
+        body64, scene["start"], scene["evidence"], EvidenceConfig(facings=1)
+    )
+    both = condition_on_keypoints(body64, scene["start"], scene["evidence"], EvidenceConfig())
+    assert one.succeeded and both.succeeded
+    # From the network's facing alone the fit cannot turn the body round (it stops at least
+    # 60° short of facing away, sideways and bent to reach the keypoints) ...
+    assert _away(one.conditioned.global_orient) < 0.5
+    missed = _reprojection(body64, one, scene["keypoints"]).mean()
+    assert missed > 1.5
+    # ... from both facings the half-turned start wins, faces away and lands on the keypoints.
+    assert both.turned and both.start == 0
+    assert not bool(faces_camera(both.conditioned.global_orient))
+    assert _away(both.conditioned.global_orient) > 0.95
+    assert _reprojection(body64, both, scene["keypoints"]).mean() < 0.5 * missed
+    assert both.costs.shape == (2,) and both.cost == pytest.approx(float(both.costs[1]))
+    assert both.cost < one.cost
+
+
+def test_a_body_facing_the_camera_keeps_its_fit(body64, seen_from_behind) -> None:
+    scene = seen_from_behind
+    start = half_turned(scene["start"])  # now the start faces the way the body does
+    one = condition_on_keypoints(body64, start, scene["evidence"], EvidenceConfig(facings=1))
+    both = condition_on_keypoints(body64, start, scene["evidence"], EvidenceConfig())
+    assert not both.turned and both.start == 0
+    for mine, theirs in zip(both.conditioned.tensors(), one.conditioned.tensors(), strict=True):
+        assert torch.allclose(mine, theirs, rtol=1e-6, atol=1e-6)  # batching noise only
+    assert both.cost == pytest.approx(one.cost)
