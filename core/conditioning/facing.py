@@ -45,11 +45,10 @@ def with_facings(starts: BodyDistribution, facings: int) -> BodyDistribution:
         return starts
     if facings != 2:
         raise ValueError(f"facings must be 1 (as read) or 2 (also half-turned), got {facings}")
-    turned = half_turned(starts)
+    turned = half_turned(starts).tensors()
     return BodyDistribution(
-        *(torch.cat((mine, theirs)) for mine, theirs in zip(starts.tensors(), turned.tensors(),
-                                                            strict=True))
-    )  # fmt: skip
+        *(torch.cat(pair) for pair in zip(starts.tensors(), turned, strict=True))
+    )
 
 
 def faces_camera(global_orient: torch.Tensor) -> torch.Tensor:
