@@ -20,7 +20,8 @@ from it: :func:`hkpd.conditioning.facing.faces_camera`). Each person goes throug
 predictor (BlazePose inside the annotated box grown by 15 %, as ``hkpd-eval --coco`` does); the
 network alone, and the evidence posterior fitted from the network's facing only
 (``EvidenceConfig(facings=1)``, the fit before issue 42) and from both facings (``facings=2``,
-the default since). People the detector misses are counted apart.
+the default since: a half-turned copy is fitted where it explains the keypoints better before
+the fit; each line says how many were). People the detector misses are counted apart.
 
     python docs/experiments/facing_direction.py assets/models/hkpd_hierarchical.pt \\
         --coco ../shared/data/coco_mini
@@ -134,7 +135,7 @@ def facing_table(predictor: Predictor, people: list[AnnotatedPerson], split: str
     labelled = [(person, annotated_facing(person)) for person in people]
     labelled = [(person, truth) for person, truth in labelled if truth is not None]
     tallies = {way: Tally() for way in WAYS}
-    missed = 0
+    missed = fitted_copies = 0
     for person, truth in labelled:
         try:
             posteriors = predictions(predictor, person)
@@ -147,11 +148,17 @@ def facing_table(predictor: Predictor, people: list[AnnotatedPerson], split: str
             marks.append("".join("+" if r else "-" for r in right))
         fit = posteriors[-1].evidence_fit
         turned = bool(fit is not None and fit.succeeded and fit.turned)
+        copies = 0
+        if fit is not None and fit.costs is not None and fit.turned_initial_costs is not None:
+            copies = fit.costs.shape[0] - fit.turned_initial_costs.shape[0]
+        fitted_copies += copies
         print(f"  {person.image_path.name} {'front' if truth else 'back '} "
-              f"(projected, axis) {' '.join(marks)} turned={turned}")  # fmt: skip
+              f"(projected, axis) {' '.join(marks)} copies fitted={copies} "
+              f"turned={turned}")  # fmt: skip
     facing = sum(truth for _, truth in labelled)
     print(f"\n{split}: {len(labelled)} people show their facing ({facing} facing the camera, "
-          f"{len(labelled) - facing} seen from behind), {missed} not detected\n")  # fmt: skip
+          f"{len(labelled) - facing} seen from behind), {missed} not detected; "
+          f"facings=2 fitted {fitted_copies} half-turned copies\n")  # fmt: skip
     print("| | mode projected right | forward axis right |\n|---|---|---|")
     for way in WAYS:
         print(tallies[way].row(way))
