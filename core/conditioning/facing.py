@@ -4,9 +4,7 @@ A 2D keypoint detector tells a person's left from right, and so whether the pers
 camera (left shoulder to the right of the right one in the photo, for an upright person) or is
 seen from behind. The network, trained almost only on people facing it, may read a person seen
 from behind as facing the camera; a fit started there cannot turn the body round against the
-global rotation's prior (0.5 rad) and bends the limbs instead (the cook of ``coco_mini``
-val2017 ``000000397133.jpg``: an upright man read leaning 34°, arms a zigzag across his back).
-So the fit also starts from each start with its global rotation composed with a half turn about
+global rotation's prior (0.5 rad) and ends sideways with the limbs bent instead. So the fit also starts from each start with its global rotation composed with a half turn about
 the body's vertical axis, ``R_g' = R_g · diag(-1, 1, -1)`` (SMPL's Y is up, +Z forward): the
 same relative pose, shape and camera, the body turned on the spot about its root, and its own
 global-rotation prior centred there. The left/right assignment of the keypoints stays, as the
@@ -19,6 +17,11 @@ prior residual is zero, so the two costs differ by the keypoints' misfit alone) 
 100 synthetic test examples the turned copy won 2 fits, both of them kept by this rule, which
 fitted a copy in those 2 only; on ``coco_mini``'s photos it fitted none, so a photo's fit costs
 one more cost evaluation, not a second fit.
+
+This does not help where the detector's own labels point the wrong way (issue 42's cook,
+``coco_mini`` val2017 ``000000397133.jpg``, is labelled as if he faced the camera): the fit
+follows the labels, and under the weak-perspective camera no facing explains swapped labels
+better (``docs/evidence.md``, "Facing").
 """
 
 from __future__ import annotations
