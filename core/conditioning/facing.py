@@ -2,9 +2,9 @@
 
 A 2D keypoint detector tells a person's left from right, and so whether the person faces the
 camera (left shoulder to the right of the right one in the photo, for an upright person) or is
-seen from behind. The network may read a person seen
-from behind as facing the camera; a fit started there cannot turn the body round against the
-global rotation's prior (0.5 rad) and ends sideways with the limbs bent instead. So the fit
+seen from behind. The network may read a person seen from behind as facing the camera; a fit
+started there cannot turn the body round against the global rotation's prior (0.5 rad) and
+ends sideways with the limbs bent instead. So the fit
 also starts from each start with its global rotation composed with a half turn about the
 body's vertical axis, ``R_g' = R_g · diag(-1, 1, -1)`` (SMPL's Y is up, +Z forward): the
 same relative pose, shape and camera, the body turned on the spot about its root, and its own
