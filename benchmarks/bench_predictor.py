@@ -3,10 +3,12 @@ network, and with 2D evidence the keypoint fit), then mode + 100 samples + per-v
 uncertainty; network-only and evidence posteriors side by side.
 
 Usage: python benchmarks/bench_predictor.py [--model CKPT] [--photos DIR] [--repeats 5]
-       [--threads 2] [--no-mirror-reading] [--silhouette-evidence]
+       [--threads 2] [--no-mirror-reading] [--silhouette-evidence] [--facings 2]
 
 ``--silhouette-evidence`` builds the predictor with ``silhouette_evidence=True``: the
 evidence rows then fit the keypoints *and* BlazePose's person mask (issue 41's speed target).
+``--facings 1`` fits each start only as the network read it, not also half-turned
+(``EvidenceConfig.facings``; issue 42).
 
 Without ``--photos`` it uses the explorer's built-in demo photo (rendered by hkpd itself).
 Prints a markdown table; results are recorded in docs/benchmarks.md.
@@ -19,6 +21,7 @@ import os
 import platform
 import statistics
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import torch
@@ -47,6 +50,12 @@ def main() -> None:
         action="store_true",
         help="the evidence posterior also fits the detector's person mask",
     )
+    parser.add_argument(
+        "--facings",
+        type=int,
+        choices=(1, 2),
+        help="fit each start as read (1) or also half-turned (2); default: the model's setting",
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     reading = ReadingConfig(mirror=not args.no_mirror_reading)
@@ -56,6 +65,8 @@ def main() -> None:
         reading_config=reading,
         silhouette_evidence=args.silhouette_evidence,
     )
+    if args.facings is not None:
+        predictor.evidence_config = replace(predictor.evidence_config, facings=args.facings)
     if args.photos:
         photos = sorted(p for p in args.photos.iterdir() if p.suffix.lower() in (".jpg", ".png"))
     else:
@@ -93,6 +104,7 @@ def main() -> None:
           f"{torch.__version__}, threads {args.threads}, network input "
           f"{predictor.crop_size} px, mirror reading {predictor.reading.config.mirror}, "
           f"silhouette evidence {predictor.silhouette_evidence}, "
+          f"facings {predictor.evidence_config.facings}, "
           f"{len(photos)} photo(s) x {args.repeats}")  # fmt: skip
     print()
     print("| step | median ms | best ms | target |")

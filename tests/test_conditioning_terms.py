@@ -159,7 +159,7 @@ def test_a_robust_term_reports_its_weights(body64) -> None:
 
 def test_a_term_reading_vertices_sees_them_and_leaves_the_keypoints_as_they_were(body64):
     starts, evidence = reference_problem(body64)
-    config = EvidenceConfig(max_iterations=2)
+    config = EvidenceConfig(max_iterations=2, facings=1)  # the probe sees the solver's calls only
     probe = VertexProbe()
     plain = condition_on_keypoints(body64, starts.rows(slice(0, 1)), evidence, config)
     probed = condition_on_keypoints(

@@ -14,6 +14,7 @@ It sits between the body model and prediction: it takes plain tensors (no networ
 
 from hkpd.conditioning.config import EvidenceConfig
 from hkpd.conditioning.evidence_term import EvidenceTerm, PosedBodies
+from hkpd.conditioning.facing import faces_camera, half_turned
 from hkpd.conditioning.keypoint_evidence import KeypointEvidence
 from hkpd.conditioning.keypoint_fit import (
     KeypointFit,
@@ -41,7 +42,9 @@ __all__ = [
     "SilhouetteTerm",
     "SurfaceSamples",
     "condition_on_keypoints",
+    "faces_camera",
     "fit_evidence",
+    "half_turned",
     "marginal_precisions",
     "matrix_fisher_from_precision",
 ]

@@ -52,6 +52,10 @@ class EvidenceConfig:
             The default stays ``"conditional"``: ``"shape"`` makes β₀'s spread honest (z² 3.5 ->
             0.6) but its height spread reaches every vertex and dilutes what hiding a limb does
             (synthetic covered-limb ratio 1.74 -> 1.49, photos 1.89 -> 1.88; ``docs/shape.md``).
+        facings: ``2`` (the default) fits every start twice, as the network read it and turned
+            180° about the body's vertical axis (:mod:`hkpd.conditioning.facing`), and keeps
+            the lower cost: a person seen from behind is no longer read facing the camera.
+            ``1`` fits the starts as read (the fit before issue 42).
     """
 
     prior_weight: float = 0.5
@@ -64,6 +68,7 @@ class EvidenceConfig:
     tolerance: float = 1e-6
     joint_spread: str = "conditional"
     rigid_spread: str = "conditional"
+    facings: int = 2
 
     def __post_init__(self) -> None:
         positive = {
@@ -86,6 +91,11 @@ class EvidenceConfig:
                 )
         if self.min_keypoints < 1 or self.max_iterations < 1:
             raise ValueError("EvidenceConfig.min_keypoints and max_iterations must be >= 1")
+        if self.facings not in (1, 2):
+            raise ValueError(
+                f"EvidenceConfig.facings must be 1 (as read) or 2 (also half-turned), "
+                f"got {self.facings}"
+            )
 
     def to_dict(self) -> dict[str, float | int | str]:
         """Every setting by field name: plain data, as a checkpoint stores it."""

@@ -3,7 +3,10 @@
 :func:`condition_on_keypoints` runs the batched Levenberg-Marquardt fit
 (:mod:`hkpd.conditioning.levenberg_marquardt`) of pose, global rotation, camera and shape to
 the evidence, from every start (e.g. the network run on the crop and on the crop rotated
-upright), keeps the start with the lowest negative log posterior, and builds the posterior in
+upright) and, with ``EvidenceConfig.facings`` 2 (the default), from each start turned 180°
+about the body's vertical axis where that copy explains the keypoints better before the fit
+(:mod:`hkpd.conditioning.facing`), all in one batch; keeps the
+start with the lowest negative log posterior, and builds the posterior in
 the network's families from the fit's Gauss-Newton Hessian ``H``. The evidence is a list of
 terms (:class:`~hkpd.conditioning.EvidenceTerm`): the keypoints' :class:`KeypointTerm`, then
 any ``extra_terms``; the Laplace step reads only ``H`` and the fitted state, so it counts every
@@ -26,6 +29,7 @@ Nothing here raises for a failed fit: a :class:`KeypointFit` without ``condition
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -35,6 +39,7 @@ import torch
 from hkpd.body import BodyModel
 from hkpd.conditioning.config import EvidenceConfig
 from hkpd.conditioning.evidence_term import EvidenceTerm
+from hkpd.conditioning.facing import facing_starts
 from hkpd.conditioning.fit_objective import FitObjective
 from hkpd.conditioning.fit_state import CAMERA, GLOBAL, NUM_BODY_JOINTS, POSE, SHAPE
 from hkpd.conditioning.keypoint_evidence import KeypointEvidence
@@ -52,9 +57,18 @@ class KeypointFit:
         conditioned: the posterior's parameters, or None when the fit failed or was skipped.
         reason: why ``conditioned`` is None ("" when it is not).
         evidence_count: number of evidence keypoints.
-        start: index of the start that won (-1 when the fit did not run).
-        costs: ``(B,)`` final negative log posterior of each start (empty when it did not run).
-        initial_costs: ``(B,)`` the starts' costs before the fit.
+        start: index of the given start that won (-1 when the fit did not run).
+        turned: the winner is that start turned 180° about the body's vertical axis
+            (:mod:`hkpd.conditioning.facing`), not the start as given.
+        costs: ``(B + T,)`` final negative log posterior of each fitted start: the ``B``
+            given ones, then the ``T`` half-turned copies that were fitted (None when the fit
+            did not run); :attr:`cost` is the winner's, row :attr:`row`.
+        initial_costs: ``(B + T,)`` the fitted starts' costs before the fit.
+        row: the winning row of ``costs`` (-1 when the fit did not run).
+        turned_initial_costs: ``(B,)`` each given start's half-turned copy's cost before the
+            fit; a copy is fitted only when its cost is below every given start's
+            (:func:`hkpd.conditioning.facing.facing_starts`). None with
+            ``EvidenceConfig.facings`` 1 or when the fit did not run.
         iterations: Levenberg-Marquardt iterations run.
         converged: the winning start met the tolerance within the iteration limit.
         keypoint_weights: ``(17,)`` robust weights of the winning start's keypoints (1 = fully
@@ -68,8 +82,11 @@ class KeypointFit:
     reason: str
     evidence_count: int
     start: int = -1
+    turned: bool = False
     costs: torch.Tensor | None = None
     initial_costs: torch.Tensor | None = None
+    row: int = -1
+    turned_initial_costs: torch.Tensor | None = None
     iterations: int = 0
     converged: bool = False
     keypoint_weights: torch.Tensor | None = None
@@ -79,6 +96,13 @@ class KeypointFit:
     @property
     def succeeded(self) -> bool:
         return self.conditioned is not None
+
+    @property
+    def cost(self) -> float:
+        """The winning start's final negative log posterior (NaN when the fit did not run)."""
+        if self.costs is None or self.row < 0:
+            return math.nan
+        return float(self.costs[self.row])
 
 
 def fit_evidence(
@@ -173,7 +197,9 @@ def condition_on_keypoints(
 
     Args:
         body: float64 body model (``BodyModel().double()``).
-        starts: B >= 1 network predictions (priors and starting points).
+        starts: B >= 1 network predictions (priors and starting points); with
+            ``config.facings`` 2 each may also be fitted turned 180° about the body's vertical
+            axis.
         evidence: the observed keypoints in the crop the starts' cameras refer to.
         config: the evidence settings (defaults: :class:`EvidenceConfig`).
         extra_terms: evidence beyond the keypoints (:class:`EvidenceTerm`), weighed in the same
@@ -201,9 +227,10 @@ def condition_on_keypoints(
         return KeypointFit(None, "the network's prediction is not finite", count)
     with torch.no_grad():
         terms = (KeypointTerm(evidence, config), *extra_terms)
-        result = fit_evidence(body, starts64, terms, config)
+        chosen = facing_starts(body, starts64, terms, config)
+        result = fit_evidence(body, chosen.starts, terms, config)
         costs = torch.where(torch.isfinite(result.cost), result.cost, torch.inf)
-        best = int(costs.argmin())
+        best = int(costs.argmin())  # the first of equal costs: the start as given
         conditioned = (
             laplace_posterior(result, best, config.joint_spread, config.rigid_spread)
             if torch.isfinite(costs[best])
@@ -211,7 +238,10 @@ def condition_on_keypoints(
         )
     common = {
         "evidence_count": count,
-        "start": best,
+        "start": chosen.origin(best)[0],
+        "turned": chosen.origin(best)[1],
+        "row": best,
+        "turned_initial_costs": chosen.turned_initial_costs,
         "costs": result.cost,
         "initial_costs": result.initial_cost,
         "iterations": result.iterations,

@@ -454,9 +454,10 @@ def _posterior_summary(posterior: BodyPosterior, evidence: bool) -> dict[str, ob
     if fit is not None and fit.conditioned is not None:
         summary["fit"] = {
             "start": "upright copy" if fit.start == 1 else "crop",
+            "turned": fit.turned,
             "iterations": fit.iterations,
             "converged": fit.converged,
-            "cost": float(fit.costs[fit.start]),
+            "cost": fit.cost,
             "seconds": round(fit.seconds, 4),
             "keypoint_weights": [round(float(w), 4) for w in fit.keypoint_weights],
         }
