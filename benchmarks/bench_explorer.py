@@ -349,11 +349,13 @@ def report_startup(repeats: int, photo: str | None, threads: int) -> None:
     print()
     print("| command -> server holds | median s | best s | runs (s) |")
     print("|---|---:|---:|---|")
-    for what in ("photo", "heatmap"):
+    labels = {
+        "photo": "the photo",
+        "heatmap": "**first complete view** (photo, bodies, heatmap)",
+        "cpu": "CPU seconds used by the first complete view (all threads)",
+    }
+    for what, label in labels.items():
         values = [run[what] for run in runs]
-        label = (
-            "the photo" if what == "photo" else "**first complete view** (photo, bodies, heatmap)"
-        )
         print(
             f"| {label} | {statistics.median(values):.2f} | {min(values):.2f} | "
             + ", ".join(f"{v:.1f}" for v in values)

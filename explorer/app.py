@@ -475,7 +475,6 @@ class ExplorerApp:
             self._placed_token = token
         posterior = result.posterior
         if new_photo:
-            self._find_people(image, token)
             placement = photo_placement(result, image.shape[1], image.shape[0])
             self.scene.place_photo(image, placement)
             self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
@@ -491,6 +490,8 @@ class ExplorerApp:
         )
         self.panels.teaching.show_proxy(result.proxy)
         self._sample_job()
+        if new_photo:  # after the first view: the person search reads the photo ten times
+            self._find_people(image, token)
         if self.state.snapshot().same_person or self.scene.combined_shown:
             self._show_combined()
 
