@@ -4,7 +4,8 @@ Threads: viser runs callbacks on its thread pool; they only change :class:`Explo
 submit jobs. The single :class:`CoalescingWorker` runs predictions (lane ``"predict"``,
 debounced), new photos (``"image"``), sampling (``"sample"``), further photos of the same person
 (``"same_person"``: their uploads queue up, one job predicts them all and shows the combined
-shape) and exports (``"export"``), and pushes the results to the global scene, which viser
+shape), exports (``"export"``) and the search for the photo's people (``"people"``, after the
+first view), and pushes the results to the global scene, which viser
 broadcasts to every tab.
 """
 
@@ -45,6 +46,10 @@ from hkpd.prediction.shape_combination import CombinedShape, combine_shape_tenso
 
 PREDICTION_DEBOUNCE_S = 0.12
 """Occluder edits closer together than this trigger one prediction."""
+
+PEOPLE_SEARCH_DELAY_S = 0.3
+"""The person search for the menu waits this long after a new photo's first view, so that the
+view reaches the browsers before the search takes the CPU."""
 
 CAMERA_FOV_DEG = 40.0
 ASSUMED_ASPECT = 1.6
@@ -124,7 +129,7 @@ class ExplorerApp:
         self._combined: CombinedShape | None = None
         self._people: tuple[Box, ...] = ()
         self._photo_name, self.model_name = photo_name, model_name
-        lanes = ("image", "predict", "sample", "same_person", "export")
+        lanes = ("image", "predict", "sample", "same_person", "export", "people")
         self.worker = CoalescingWorker(lanes, self._job_failed)
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
@@ -490,8 +495,9 @@ class ExplorerApp:
         )
         self.panels.teaching.show_proxy(result.proxy)
         self._sample_job()
-        if new_photo:  # after the first view: the person search reads the photo ten times
-            self._find_people(image, token)
+        if new_photo:  # after the first view is sent: the person search reads the photo 10 times
+            people_job = lambda: self._find_people(image, token)  # noqa: E731
+            self.worker.submit("people", people_job, delay_s=PEOPLE_SEARCH_DELAY_S)
         if self.state.snapshot().same_person or self.scene.combined_shown:
             self._show_combined()
 

@@ -97,9 +97,13 @@ def main() -> None:
         "lesson_network_only": predictor.predict(photo, evidence=False),
     }
     print(f"shin box {box}")
-    print("as predicted:", {k: round(v, 2) for k, v in limbs_cm(plain).items()})
+    print(f"as predicted ({plain.evidence_fit.evidence_count} keypoints as evidence):",
+          {k: round(v, 2) for k, v in limbs_cm(plain).items()})  # fmt: skip
     for name, posterior in lessons.items():
-        print(f"{name}:", {k: round(v, 2) for k, v in limbs_cm(posterior).items()})
+        fit = posterior.evidence_fit
+        counted = fit.evidence_count if posterior.conditioned and fit is not None else 0
+        print(f"{name} ({counted} keypoints as evidence):",
+              {k: round(v, 2) for k, v in limbs_cm(posterior).items()})  # fmt: skip
         page = show(posterior, photo_name="warrior_lunge.jpg", model_name="the shipped model")
         if args.pages is not None:
             page.save(args.pages / f"{name}.html", force=True)
