@@ -75,6 +75,10 @@ def screenshot(page_html: str, target: Path) -> None:
         page.goto(path.as_uri())
         page.wait_for_function("() => [...document.querySelectorAll('canvas')].length > 0")
         page.wait_for_timeout(6000)
+        # viser warns about software WebGL (headless Chromium has no GPU): close the notice.
+        for button in page.locator(".mantine-Notification-closeButton").all():
+            button.click()
+        page.wait_for_timeout(500)
         shot = Image.open(io.BytesIO(page.screenshot())).convert("RGB")
         browser.close()
     height = round(shot.height * WIDTH / shot.width)
