@@ -14,8 +14,8 @@ With ``--export-html OUT.html`` no server is started for anyone: the first view 
 existing OUT.html is kept unless ``--force``.
 
 Start-up order: the heavy modules (torch, the model) are imported only once the arguments and
-the photo's path are checked, and the predictor loads in a thread while the app's modules
-import (see docs/benchmarks.md, "Explorer start-up").
+the photo's path are checked; the model, then the app (see docs/benchmarks.md, "Explorer
+start-up").
 """
 
 from __future__ import annotations
@@ -163,27 +163,14 @@ def _model_name(args: argparse.Namespace) -> str:
     return Path(args.model).name if args.model else "the shipped model"
 
 
-def _load_concurrently(args: argparse.Namespace) -> tuple[PosteriorProvider, type[ExplorerApp]]:
-    """The provider (the model loads in a thread) and the app class (its modules import
-    meanwhile: viser, the scene, the panels)."""
-    import hkpd.explorer.provider  # noqa: F401  torch and the prediction modules, first, once
-
-    loaded: dict[str, PosteriorProvider | SystemExit] = {}
-
-    def load() -> None:
-        try:
-            loaded["provider"] = _build_provider(args)
-        except SystemExit as error:
-            loaded["error"] = error
-
-    loader = threading.Thread(target=load, name="hkpd-load-model", daemon=True)
-    loader.start()
+def _load_provider_and_app(args: argparse.Namespace) -> tuple[PosteriorProvider, type[ExplorerApp]]:
+    """The provider (the model), then the app class. Loading the model in a thread while the
+    app's modules import was measured slower (its first prediction then cost ~4 CPU seconds
+    more), so they load one after the other."""
+    provider = _build_provider(args)
     from hkpd.explorer.app import ExplorerApp
 
-    loader.join()
-    if "error" in loaded:
-        raise loaded["error"]
-    return loaded["provider"], ExplorerApp
+    return provider, ExplorerApp
 
 
 def _export_page(
@@ -241,7 +228,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.export_html is not None:
         return _export_page(args, person_box, occluders)
     image = _load_photo(args.image, args.demo)
-    provider, app_class = _load_concurrently(args)
+    provider, app_class = _load_provider_and_app(args)
     try:
         app = app_class(
             provider,
