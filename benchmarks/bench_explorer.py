@@ -22,7 +22,14 @@ resident memory after each batch of uploads; then hostile uploads, all at once f
 valid files of a few hundred KB, written to a temporary folder at run time), with the peak
 resident memory sampled every 5 ms and the message each upload got.
 
+With ``--startup N`` it measures start-up instead, N times: the time from starting the
+``hkpd-explore`` command (the shipped model, ``--no-browser``) to the server holding the photo,
+and to it holding the first complete view (photo, mode body, heatmap). A plain websocket client
+polls the port from the moment the process starts; the server sends a new client every scene
+node it holds, so the client sees a node as soon as the server has it (no browser involved).
+
 Usage: python benchmarks/bench_explorer.py [--threads 2] [--repeats 15] [--real] [--uploads 20]
+       python benchmarks/bench_explorer.py --startup 5 [--photo PATH]
 """
 
 from __future__ import annotations
@@ -32,8 +39,11 @@ import asyncio
 import io
 import os
 import platform
+import signal
+import socket
 import statistics
 import struct
+import subprocess
 import sys
 import tempfile
 import threading
@@ -47,6 +57,7 @@ import torch
 import trimesh
 import viser
 import websockets
+import zstandard
 from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -60,6 +71,8 @@ from hkpd.explorer.provider import PredictorProvider
 from hkpd.prediction.image_input import load_image
 
 QUIET_S = 0.15
+STARTUP_NODES = {"photo": "/photo", "mode": "/body/mode", "heatmap": "/heat/points"}
+"""Scene nodes of the first complete view, by what they show."""
 
 
 class FrameRecorder:
@@ -115,7 +128,12 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=15)
     parser.add_argument("--real", action="store_true", help="the shipped model on its photo")
     parser.add_argument("--uploads", type=int, default=0, help="then upload this many photos")
+    parser.add_argument("--startup", type=int, default=0, help="measure start-up this many times")
+    parser.add_argument("--photo", default=None, help="photo for --startup (default: shipped)")
     args = parser.parse_args()
+    if args.startup:
+        report_startup(args.startup, args.photo, args.threads)
+        return
     torch.set_num_threads(args.threads)
     if args.real:
         provider, image = PredictorProvider(device="cpu"), load_image(shipped_photo()).pixels
@@ -357,6 +375,107 @@ def solid_png(width: int, height: int, colour: tuple[int, int, int]) -> bytes:
     return (
         b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", data) + chunk(b"IEND", b"")
     )
+
+
+def msgpack_name(name: str) -> bytes:
+    """How a short node name appears inside viser's msgpack frames (a fixstr)."""
+    assert len(name) < 32
+    return bytes([0xA0 | len(name)]) + name.encode()
+
+
+def frame_messages(frame: bytes | str) -> bytes:
+    """The msgpack part of one viser websocket frame (``[8 B size][8 B zstd size][zstd]...``)."""
+    if isinstance(frame, str):
+        return frame.encode()
+    size = int.from_bytes(frame[:8], "little")
+    compressed = int.from_bytes(frame[8:16], "little")
+    return zstandard.ZstdDecompressor().decompress(frame[16 : 16 + compressed], size)
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def process_cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds process ``pid`` has used so far (all its threads)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+async def _watch_startup(port: int, started: float, timeout: float, pid: int) -> dict[str, float]:
+    """Seconds from ``started`` until each of :data:`STARTUP_NODES` reached a client, and
+    ``"cpu"``: the CPU seconds the explorer had used by the first complete view."""
+    protocol = f"viser-v{viser.__version__}"
+    seen: dict[str, float] = {}
+    deadline = started + timeout
+    while time.perf_counter() < deadline:
+        try:
+            ws = await websockets.connect(
+                f"ws://127.0.0.1:{port}", subprotocols=[protocol], max_size=None
+            )
+        except OSError:
+            await asyncio.sleep(0.05)
+            continue
+        async with ws:
+            async for message in ws:
+                now = time.perf_counter() - started
+                data = frame_messages(message)
+                for what, name in STARTUP_NODES.items():
+                    if what not in seen and msgpack_name(name) in data:
+                        seen[what] = now
+                if len(seen) == len(STARTUP_NODES):
+                    return {**seen, "cpu": process_cpu_seconds(pid)}
+                if time.perf_counter() > deadline:
+                    break
+    raise TimeoutError(f"the explorer did not show its first view within {timeout:.0f} s")
+
+
+def startup_once(photo: str | None, threads: int) -> dict[str, float]:
+    """Start ``hkpd-explore`` once and time its first view (see the module docstring)."""
+    port = free_port()
+    command = [sys.executable, "-m", "hkpd.explorer.cli", "--no-browser", "--port", str(port)]
+    command += [photo] if photo else []
+    env = {**os.environ, "OMP_NUM_THREADS": str(threads)}
+    started = time.perf_counter()
+    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        return asyncio.run(_watch_startup(port, started, 120.0, process.pid))
+    finally:
+        process.send_signal(signal.SIGTERM)
+        try:
+            process.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            process.kill()
+
+
+def report_startup(repeats: int, photo: str | None, threads: int) -> None:
+    loads, runs = [os.getloadavg()[0]], []
+    for _ in range(repeats):
+        runs.append(startup_once(photo, threads))
+        loads.append(os.getloadavg()[0])
+    when = time.strftime("%Y-%m-%d %H:%M %Z")
+    print(f"# hkpd-explore start-up ({photo or 'the shipped photo'}) — {when}")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
+        f"OMP_NUM_THREADS={threads}, load average {min(loads):.1f}-{max(loads):.1f} (shared)"
+    )
+    print()
+    print("| command -> server holds | median s | best s | runs (s) |")
+    print("|---|---:|---:|---|")
+    labels = {
+        "photo": "the photo",
+        "heatmap": "**first complete view** (photo, bodies, heatmap)",
+        "cpu": "CPU seconds used by the first complete view (all threads)",
+    }
+    for what, label in labels.items():
+        values = [run[what] for run in runs]
+        print(
+            f"| {label} | {statistics.median(values):.2f} | {min(values):.2f} | "
+            + ", ".join(f"{v:.1f}" for v in values)
+            + " |"
+        )
 
 
 def resident_megabytes() -> float:

@@ -48,6 +48,10 @@ HEAVY_IMPORTS = ("torch", "cv2", "trimesh")
 """Imported one by one before a command's module, each followed by :func:`raise_if_interrupted`
 (trimesh catches BaseException in its imports)."""
 
+LAZY_IMPORTS = {"hkpd-explore": ("trimesh",)}
+"""Heavy imports a command makes only later, off the main thread, where no Ctrl-C lands: the
+explorer imports trimesh on its first mesh export (about 1 s of its start-up otherwise)."""
+
 
 _received = threading.Event()
 """Set by every SIGINT that reached a handler of this module (see :func:`raise_if_interrupted`)."""
@@ -102,6 +106,8 @@ def run_command(program: str, argv: Sequence[str] | None = None) -> int:
     _received.clear()
     try:
         for name in HEAVY_IMPORTS:
+            if name in LAZY_IMPORTS.get(program, ()):
+                continue
             importlib.import_module(name)
             raise_if_interrupted()
         module = importlib.import_module(COMMANDS[program])

@@ -13,6 +13,10 @@ To drive it from Python with any predictor::
     app = ExplorerApp(MyProvider(), image, port=8080)   # image: (H, W, 3) uint8 RGB
     print(app.url)
 
+In a notebook, ``show(posterior)`` returns the explorer's scene of a prediction as an object
+Jupyter displays inline (``hkpd.explorer.show(predictor.predict(photo))``; ``.save(path)``
+writes the page).
+
 (``evidence``: condition on the photo's 2D keypoints, else the network alone; ``bbox``: look
 for the person only inside this box, None: anywhere; see :class:`PosteriorProvider`.)
 
@@ -22,8 +26,10 @@ Modules: ``state`` (app state), ``worker`` (coalescing background worker), ``pro
 (the GUI: one builder per section, arranged in tabs by ``panels.build_panels``), ``app``
 (wiring), ``photo_geometry``, ``colour_map`` (the colourings and their colour bars),
 ``change_baseline`` (the change colouring's baseline per photo and person), ``upload``,
-``export``, ``demo_photo`` (the shipped photo), ``demo_scene`` (the synthetic scene) and
-``cli``. Names below are imported lazily so that ``import hkpd.explorer`` does not start viser.
+``export``, ``demo_photo`` (the shipped photo), ``demo_scene`` (the synthetic scene),
+``html_page`` (a scene as one self-contained HTML page), ``saved_scene`` (pages without a live
+explorer: ``hkpd-explore --export-html`` and :func:`show`) and ``cli``. Names below are imported
+lazily so that ``import hkpd.explorer`` does not start viser.
 """
 
 from __future__ import annotations
@@ -42,6 +48,8 @@ _EXPORTS = {
     "PosteriorView": "hkpd.explorer.posterior_view",
     "compute_view": "hkpd.explorer.posterior_view",
     "render_demo_scene": "hkpd.explorer.demo_scene",
+    "show": "hkpd.explorer.saved_scene",
+    "ScenePage": "hkpd.explorer.saved_scene",
 }
 
 __all__ = sorted(_EXPORTS)

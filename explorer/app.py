@@ -4,7 +4,8 @@ Threads: viser runs callbacks on its thread pool; they only change :class:`Explo
 submit jobs. The single :class:`CoalescingWorker` runs predictions (lane ``"predict"``,
 debounced), new photos (``"image"``), sampling (``"sample"``), further photos of the same person
 (``"same_person"``: their uploads queue up, one job predicts them all and shows the combined
-shape) and exports (``"export"``), and pushes the results to the global scene, which viser
+shape), exports (``"export"``) and the search for the photo's people (``"people"``, after the
+first view), and pushes the results to the global scene, which viser
 broadcasts to every tab.
 """
 
@@ -15,6 +16,7 @@ import math
 import sys
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +27,7 @@ from hkpd.distributions import MatrixFisher
 from hkpd.explorer.change_baseline import BaselineCache, BaselineKey
 from hkpd.explorer.colour_map import HeatmapScale
 from hkpd.explorer.export import meshes_file, png_bytes
+from hkpd.explorer.html_page import SceneCaption, describe_scene, scene_page
 from hkpd.explorer.panels import build_panels
 from hkpd.explorer.panels.same_person import ONLY_CURRENT_PHOTO
 from hkpd.explorer.panels.samples import DEFAULT_FIT_OPACITY
@@ -53,6 +56,10 @@ from hkpd.prediction.shape_combination import CombinedShape, combine_shape_tenso
 
 PREDICTION_DEBOUNCE_S = 0.12
 """Occluder edits closer together than this trigger one prediction."""
+
+PEOPLE_SEARCH_DELAY_S = 0.3
+"""The person search for the menu waits this long after a new photo's first view, so that the
+view reaches the browsers before the search takes the CPU."""
 
 CAMERA_FOV_DEG = 40.0
 ASSUMED_ASPECT = 1.6
@@ -93,6 +100,13 @@ class ExplorerApp:
         num_samples: samples for the heatmap (default 100).
         num_displayed: sample meshes drawn (default 10).
         person_box: ``(x0, y0, x1, y1)``: look for the person only there in the first photo.
+        occluders: boxes ``(x0, y0, x1, y1)`` (photo pixels) hidden in the first prediction.
+        evidence: condition the first prediction on the photo's keypoints (else the network).
+        photo_name, model_name: what the photo and the model are called in saved pages'
+            captions (an uploaded photo goes by its file name).
+
+    Raises:
+        ValueError: an occluder lies off the photo or is smaller than 2 pixels.
     """
 
     def __init__(
@@ -105,6 +119,10 @@ class ExplorerApp:
         num_samples: int = 100,
         num_displayed: int = 10,
         person_box: tuple[float, float, float, float] | None = None,
+        occluders: Sequence[Box] = (),
+        evidence: bool = True,
+        photo_name: str = "the photo",
+        model_name: str = "the model",
     ) -> None:
         image = _check_image(image)
         self.provider = provider
@@ -128,7 +146,8 @@ class ExplorerApp:
         self._people: tuple[Box, ...] = ()
         self._people_token = -1
         self._photo_is_plain = False
-        lanes = ("image", "predict", "sample", "same_person", "export")
+        self._photo_name, self.model_name = photo_name, model_name
+        lanes = ("image", "predict", "sample", "same_person", "export", "people")
         self.worker = CoalescingWorker(lanes, self._job_failed)
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
@@ -141,7 +160,16 @@ class ExplorerApp:
         self._overlay: FitOverlay | None = None
         self._fit_visible, self._fit_opacity = True, DEFAULT_FIT_OPACITY
         self.state.set_image(image.shape[1], image.shape[0], person_box)
-        self.panels.photo.occluders.show((), self.state.image_size)
+        self.state.set_evidence(evidence)
+        for box in occluders:
+            if self.state.add_occluder(box) is None:
+                self.server.stop()
+                raise ValueError(f"occluder {tuple(box)} is off the photo or under 2 pixels")
+        self.panels.photo.occluders.show(self.state.snapshot().occluders, self.state.image_size)
+        # The photo first, at a provisional size: the first prediction places it by the body.
+        provisional = provisional_placement(image.shape[1], image.shape[0])
+        self.scene.place_photo(image, provisional)
+        self._frame_camera(provisional)
         self.worker.start()
         self.worker.submit("predict", self._predict_job)
 
@@ -174,6 +202,32 @@ class ExplorerApp:
         (None until a photo is added)."""
         with self._lock:
             return self._combined
+
+    def page_caption(self) -> SceneCaption | None:
+        """What a saved page of the current scene shows, in words (None before a prediction)."""
+        result = self.result
+        if result is None:
+            return None
+        snapshot = self.state.snapshot()
+        with self._lock:
+            photo = self._photo_name
+        return describe_scene(
+            result.posterior,
+            photo=photo,
+            model=self.model_name,
+            occluders=snapshot.active_boxes,
+            num_samples=snapshot.num_samples,
+            num_displayed=snapshot.num_displayed if self.scene.show_samples else 0,
+            concentration_factors=snapshot.concentration_factors,
+        )
+
+    def page_html(self) -> str:
+        """The current scene as one self-contained HTML page with its caption
+        (:mod:`hkpd.explorer.html_page`)."""
+        caption = self.page_caption()
+        if caption is None:
+            raise RuntimeError("nothing to save yet: the first prediction has not finished")
+        return scene_page(self.server, caption)
 
     def wait_idle(self, timeout: float = 30.0) -> bool:
         """Block until no work is pending (for tests and benchmarks)."""
@@ -340,6 +394,9 @@ class ExplorerApp:
     def request_screenshot(self, client: viser.ClientHandle) -> None:
         self.worker.submit("export", lambda: self._screenshot_job(client))
 
+    def request_page(self, client: viser.ClientHandle) -> None:
+        self.worker.submit("export", lambda: self._page_job(client))
+
     # ------------------------------------------------------------------ pointer events
     def _on_rect_select(self, event: viser.SceneRectSelectEvent) -> None:
         placement = self.scene.placement
@@ -441,12 +498,15 @@ class ExplorerApp:
             self._notify(each, "No person found", advice.replace("**", ""), error=True)
 
     def _place_photo(self, image: np.ndarray, placement: PhotoPlacement, token: int) -> None:
-        """Draw photo ``token`` at ``placement``, frame it, then list its people (once)."""
+        """Draw photo ``token`` at ``placement`` and frame it; its people are listed once, in
+        the ``"people"`` lane after :data:`PEOPLE_SEARCH_DELAY_S` (after the first view is
+        sent: the person search reads the photo 10 times)."""
         self.scene.place_photo(image, placement)
         self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
         self._frame_camera(placement)
         if token != self._people_token:
-            self._find_people(image, token)
+            people_job = lambda: self._find_people(image, token)  # noqa: E731
+            self.worker.submit("people", people_job, delay_s=PEOPLE_SEARCH_DELAY_S)
 
     def _image_job(self, image: np.ndarray, name: str, client: viser.ClientHandle | None) -> None:
         started = time.perf_counter()
@@ -461,7 +521,7 @@ class ExplorerApp:
             return
         self.timings.predict = time.perf_counter() - started
         with self._lock:
-            self._image = image
+            self._image, self._photo_name = image, name
             self._image_token += 1
             token = self._image_token
             self.state.set_image(image.shape[1], image.shape[0])
@@ -641,6 +701,12 @@ class ExplorerApp:
         data = meshes_file(view.mode_vertices, view.sample_vertices, self.scene.faces, file_format)
         client.send_file_download(f"hkpd_bodies.{file_format}", data)
 
+    def _page_job(self, client: viser.ClientHandle) -> None:
+        if self.result is None:
+            self._notify(client, "No page saved", "Wait for the first prediction.", error=True)
+            return
+        client.send_file_download("hkpd_scene.html", self.page_html().encode("utf-8"))
+
     def _screenshot_job(self, client: viser.ClientHandle) -> None:
         height, width = SCREENSHOT_SIZE
         image = client.get_render(height, width, transport_format="png", timeout=30.0)
@@ -779,6 +845,13 @@ def weak_keypoints_warning(posterior: object) -> str | None:
         f"**Weak keypoints:** {why} ({shown} of 17 keypoints confident enough, mean confidence "
         f"{confidence:.2f}); the box may not hold a person."
     )
+
+
+def provisional_placement(width: int, height: int) -> PhotoPlacement:
+    """Where the photo stands before the first prediction: 2 m tall, its bottom on the floor."""
+    height_m = 2.0
+    width_m = height_m * width / height
+    return PhotoPlacement(width, height, (-(PHOTO_GAP + width_m / 2), 0.0, 0.0), height_m)
 
 
 def _fit_overlay(posterior) -> FitOverlay | None:

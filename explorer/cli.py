@@ -2,13 +2,21 @@
 
 Usage::
 
-    hkpd-explore [IMAGE] [--bbox X0 Y0 X1 Y1] [--demo photo|synthetic] [--port 8080]
-                 [--host 127.0.0.1] [--no-browser] [--model PATH] [--device auto]
-                 [--samples 100] [--meshes 10]
+    hkpd-explore [IMAGE] [--bbox X0 Y0 X1 Y1] [--occluder X0 Y0 X1 Y1]... [--demo photo|synthetic]
+                 [--port 8080] [--host 127.0.0.1] [--no-browser] [--model PATH] [--device auto]
+                 [--samples 100] [--meshes 10] [--export-html OUT.html [--force]]
 
 The server binds to 127.0.0.1 unless ``--host`` says otherwise (anyone who can reach the port
 can drive the app and upload files, so a warning is printed). A busy ``--port`` is an error;
 ``--port 0`` takes any free port. Ctrl-C stops it.
+
+With ``--export-html OUT.html`` no server is started for anyone: the first view (with the
+``--occluder`` boxes hidden) is written to one self-contained page and the command exits; an
+existing OUT.html is kept unless ``--force``.
+
+Start-up order: the heavy modules (torch, the model) are imported only once the arguments and
+the photo's path are checked; the model, then the app (see docs/benchmarks.md, "Explorer
+start-up").
 """
 
 from __future__ import annotations
@@ -23,17 +31,18 @@ import sys
 import threading
 import webbrowser
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hkpd.explorer.demo_photo import shipped_photo
-from hkpd.explorer.provider import PosteriorProvider, PredictorProvider
 from hkpd.explorer.state import MAX_DISPLAYED_SAMPLES, MAX_SAMPLES
 from hkpd.interrupts import interrupted
 
 if TYPE_CHECKING:
     from hkpd.explorer.app import ExplorerApp
+    from hkpd.explorer.provider import PosteriorProvider
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -60,6 +69,24 @@ def build_parser() -> argparse.ArgumentParser:
         metavar=("X0", "Y0", "X1", "Y1"),
         help="look for the person only inside this box (photo pixels): to pick one of several "
         "people, or when none is found",
+    )
+    parser.add_argument(
+        "--occluder",
+        nargs=4,
+        type=float,
+        action="append",
+        default=[],
+        metavar=("X0", "Y0", "X1", "Y1"),
+        help="hide this box of the photo (photo pixels) from the start; repeat for more boxes",
+    )
+    parser.add_argument(
+        "--export-html",
+        metavar="OUT.html",
+        default=None,
+        help="write the first view as one self-contained HTML page (no server) and exit",
+    )
+    parser.add_argument(
+        "--force", action="store_true", help="with --export-html: replace an existing OUT.html"
     )
     parser.add_argument(
         "--port", type=int, default=8080, help="TCP port (default 8080; 0: any free port)"
@@ -124,6 +151,8 @@ def _busy_port_message(port: int) -> str:
 
 
 def _build_provider(args: argparse.Namespace) -> PosteriorProvider:
+    from hkpd.explorer.provider import PredictorProvider
+
     if args.provider is not None:
         module_name, _, attribute = args.provider.partition(":")
         try:
@@ -138,6 +167,69 @@ def _build_provider(args: argparse.Namespace) -> PosteriorProvider:
             f"hkpd-explore: could not load the predictor ({type(error).__name__}: {error}). "
             "Pass a trained checkpoint with --model PATH."
         ) from None
+
+
+def _box_argument(option: str, box: Sequence[float]) -> tuple[float, float, float, float]:
+    x0, y0, x1, y1 = box
+    if not (x1 > x0 and y1 > y0) or not all(map(math.isfinite, box)):
+        raise SystemExit(f"hkpd-explore: {option} needs x0 y0 x1 y1 with x1 > x0 and y1 > y0")
+    return (x0, y0, x1, y1)
+
+
+def _photo_name(args: argparse.Namespace) -> str:
+    if args.image is not None:
+        return Path(args.image).name
+    return "the synthetic demo scene" if args.demo == "synthetic" else "the shipped CC0 photo"
+
+
+def _model_name(args: argparse.Namespace) -> str:
+    if args.provider is not None:
+        return f"provider {args.provider}"
+    return Path(args.model).name if args.model else "the shipped model"
+
+
+def _load_provider_and_app(args: argparse.Namespace) -> tuple[PosteriorProvider, type[ExplorerApp]]:
+    """The provider (the model), then the app class. Loading the model in a thread while the
+    app's modules import was measured slower (its first prediction then cost ~4 CPU seconds
+    more), so they load one after the other."""
+    provider = _build_provider(args)
+    from hkpd.explorer.app import ExplorerApp
+
+    return provider, ExplorerApp
+
+
+def _export_page(
+    args: argparse.Namespace,
+    person_box: tuple[float, float, float, float] | None,
+    occluders: list[tuple[float, float, float, float]],
+) -> int:
+    """``--export-html``: write the first view as one page and exit (no server for users)."""
+    target = Path(args.export_html)
+    if target.exists() and not args.force:
+        raise SystemExit(
+            f"hkpd-explore: {target} exists: choose another name, or pass --force to replace it"
+        )
+    if not target.parent.is_dir():
+        raise SystemExit(f"hkpd-explore: folder {target.parent} does not exist: create it first")
+    image = _load_photo(args.image, args.demo)
+    provider = _build_provider(args)
+
+    from hkpd.explorer.html_page import PageExistsError
+    from hkpd.explorer.saved_scene import render_scene_page
+
+    try:
+        page = render_scene_page(
+            provider, image, occluders=occluders, person_box=person_box,
+            photo_name=_photo_name(args), model_name=_model_name(args),
+            num_samples=args.samples, num_displayed=args.meshes,
+        )  # fmt: skip
+        written = page.save(target, force=args.force)
+    except (ValueError, RuntimeError, OSError) as error:
+        if isinstance(error, PageExistsError):
+            raise SystemExit(f"hkpd-explore: {error}") from None
+        raise SystemExit(f"hkpd-explore: no page written: {error}") from None
+    print(f"wrote {written} ({written.stat().st_size / 1e6:.1f} MB): {page.caption}")
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -156,21 +248,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             "explorer and upload files to this machine",
             file=sys.stderr,
         )
+    person_box = _box_argument("--bbox", args.bbox) if args.bbox is not None else None
+    occluders = [_box_argument("--occluder", box) for box in args.occluder]
+    if args.export_html is not None:
+        try:
+            return _export_page(args, person_box, occluders)
+        except KeyboardInterrupt:
+            return interrupted("hkpd-explore")
     if args.port != 0:
         _refuse_busy_port(args.host, args.port)
     try:
         image = _load_photo(args.image, args.demo)
-    except KeyboardInterrupt:
-        return interrupted("hkpd-explore")
-    person_box = None
-    if args.bbox is not None:
-        x0, y0, x1, y1 = args.bbox
-        if not (x1 > x0 and y1 > y0) or not all(map(math.isfinite, args.bbox)):
-            raise SystemExit("hkpd-explore: --bbox needs x0 y0 x1 y1 with x1 > x0 and y1 > y0")
-        person_box = (x0, y0, x1, y1)
-    try:
-        provider = _build_provider(args)
-        from hkpd.explorer.app import ExplorerApp
+        provider, app_class = _load_provider_and_app(args)
     except KeyboardInterrupt:
         return interrupted("hkpd-explore")
     # From here Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (while the
@@ -179,15 +268,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
-    app = ExplorerApp(
-        provider,
-        image,
-        host=args.host,
-        port=args.port,
-        num_samples=args.samples,
-        num_displayed=args.meshes,
-        person_box=person_box,
-    )
+    try:
+        app = app_class(
+            provider,
+            image,
+            host=args.host,
+            port=args.port,
+            num_samples=args.samples,
+            num_displayed=args.meshes,
+            person_box=person_box,
+            occluders=occluders,
+            photo_name=_photo_name(args),
+            model_name=_model_name(args),
+        )
+    except ValueError as error:
+        raise SystemExit(f"hkpd-explore: {error}") from None
     if stop.is_set():  # Ctrl-C while the server was starting
         app.stop()
         return interrupted("hkpd-explore")

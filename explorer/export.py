@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-import trimesh
 
 MESH_FORMATS = ("glb", "ply")
 
@@ -28,6 +27,8 @@ def meshes_file(
     """
     if file_format not in MESH_FORMATS:
         raise ValueError(f"unknown mesh format {file_format!r}; use one of {MESH_FORMATS}")
+    import trimesh  # imported on the first export: it (and its scipy) costs ~1 s of start-up
+
     upright = np.diag([1.0, -1.0, -1.0])
     bodies = [("mode", mode_vertices, MODE_RGBA)] + [
         (f"sample_{i:02d}", vertices, SAMPLE_RGBA) for i, vertices in enumerate(sample_vertices)

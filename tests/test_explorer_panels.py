@@ -84,6 +84,9 @@ class RecordingActions:
     def request_screenshot(self, client) -> None:
         self.calls.append(("request_screenshot",))
 
+    def request_page(self, client) -> None:
+        self.calls.append(("request_page",))
+
 
 @pytest.fixture(scope="module")
 def server():
@@ -238,9 +241,11 @@ def test_teaching_export_and_same_person(built) -> None:
     assert not panels.teaching.proxy_edges.visible
     click(panels.export.meshes["ply"])
     click(panels.export.screenshot)
+    click(panels.export.page)
     click(panels.same_person.clear)
     assert actions.named("request_export") == [("ply",)]
     assert actions.named("request_screenshot") == [()]
+    assert actions.named("request_page") == [()]
     assert actions.named("clear_same_person") == [()]
     panels.same_person.show("**2 photos**")
     assert panels.same_person.text.content == "**2 photos**"

@@ -1,5 +1,6 @@
-"""The "Export" folder: the mode and the displayed samples as GLB or PLY, and a PNG screenshot
-rendered by the browser."""
+"""The "Export" folder: the mode and the displayed samples as GLB or PLY, a PNG screenshot
+rendered by the browser, and the scene as one self-contained HTML page (for slides and course
+pages: it opens without a server)."""
 
 from __future__ import annotations
 
@@ -23,6 +24,10 @@ class ExportActions(Protocol):
         """Send a PNG of the client's view."""
         ...
 
+    def request_page(self, client: viser.ClientHandle) -> None:
+        """Send the current scene as one self-contained HTML page with its caption."""
+        ...
+
 
 @dataclass(frozen=True)
 class ExportSection:
@@ -31,10 +36,12 @@ class ExportSection:
     Attributes:
         meshes: one button per mesh format, by format.
         screenshot: "Screenshot (PNG)".
+        page: "Export page (HTML)".
     """
 
     meshes: dict[str, viser.GuiButtonHandle]
     screenshot: viser.GuiButtonHandle
+    page: viser.GuiButtonHandle
 
 
 def build_export_section(gui: viser.GuiApi, actions: ExportActions) -> ExportSection:
@@ -45,10 +52,16 @@ def build_export_section(gui: viser.GuiApi, actions: ExportActions) -> ExportSec
             for file_format in MESH_FORMATS
         }
         screenshot = gui.add_button("Screenshot (PNG)", icon=viser.Icon.CAMERA)
+        page = gui.add_button(
+            "Export page (HTML)",
+            icon=viser.Icon.FILE_CODE,
+            hint="The scene as one HTML file that opens without a server (slides, course pages)",
+        )
     for file_format, button in meshes.items():
         button.on_click(_export_callback(actions, file_format))
     screenshot.on_click(lambda event: actions.request_screenshot(event.client))
-    return ExportSection(meshes, screenshot)
+    page.on_click(lambda event: actions.request_page(event.client))
+    return ExportSection(meshes, screenshot, page)
 
 
 def _export_callback(actions: ExportActions, file_format: str) -> Callable[[viser.GuiEvent], None]:

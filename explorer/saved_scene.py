@@ -1,0 +1,148 @@
+"""Scenes without a live explorer: the page ``hkpd-explore --export-html`` writes, and
+``hkpd.explorer.show(posterior)`` for notebooks.
+
+Both build the explorer's own scene (the same :class:`~hkpd.explorer.app.ExplorerApp`, its
+scene and colouring) on a server bound to a free port of this machine that no browser is sent
+to, wait for the first complete view, frame it for a page without the control panel, serialise
+it (:mod:`hkpd.explorer.html_page`) and close the server.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hkpd.explorer.app import ASSUMED_ASPECT, ExplorerApp, framing
+from hkpd.explorer.html_page import iframe_html, write_page
+from hkpd.explorer.provider import Box, PosteriorProvider, PredictionResult
+from hkpd.prediction.posterior import BodyPosterior
+
+PAGE_TIMEOUT_S = 300.0
+"""Longest wait for the prediction and the first view (a slow CPU under load)."""
+
+
+class FixedPosterior:
+    """A provider that answers every request with one posterior (for :func:`show`: the
+    posterior already says what the photo and its occluders gave)."""
+
+    def __init__(self, posterior: BodyPosterior) -> None:
+        self.posterior = posterior
+        network_input = getattr(posterior, "network_input", None)
+        self.proxy = None if network_input is None else network_input.proxy.cpu()
+
+    def predict(
+        self,
+        image: np.ndarray,
+        occluders: Sequence[Box],
+        evidence: bool = True,
+        bbox: Box | None = None,
+    ) -> PredictionResult:
+        return PredictionResult(posterior=self.posterior, proxy=self.proxy)
+
+
+@dataclass(frozen=True)
+class ScenePage:
+    """One saved scene: a self-contained HTML document that Jupyter shows inline.
+
+    Attributes:
+        html: the page (opens from a file, with no server and no network).
+        caption: its caption as plain text.
+        height: CSS pixels of the inline view in a notebook.
+    """
+
+    html: str
+    caption: str
+    height: int = 520
+
+    def _repr_html_(self) -> str:
+        return iframe_html(self.html, self.height)
+
+    def save(self, path: str | Path, force: bool = False) -> Path:
+        """Write the page to ``path``; an existing file is kept unless ``force``."""
+        return write_page(path, self.html, force=force)
+
+
+def render_scene_page(
+    provider: PosteriorProvider,
+    image: np.ndarray,
+    *,
+    occluders: Sequence[Box] = (),
+    evidence: bool = True,
+    person_box: Box | None = None,
+    photo_name: str = "the photo",
+    model_name: str = "the model",
+    num_samples: int = 100,
+    num_displayed: int = 10,
+) -> ScenePage:
+    """The explorer's first view of ``image`` ``(H, W, 3)`` uint8 RGB with ``occluders``
+    (photo pixels) hidden, as a :class:`ScenePage`.
+
+    Raises:
+        ValueError: an occluder is off the photo.
+        RuntimeError: no person was found (pass ``person_box``) or the prediction failed.
+    """
+    with _quiet_server():  # viser prints an address banner nobody is meant to open
+        app = ExplorerApp(
+            provider, image, host="127.0.0.1", port=0, num_samples=num_samples,
+            num_displayed=num_displayed, person_box=person_box, occluders=occluders,
+            evidence=evidence, photo_name=photo_name, model_name=model_name,
+        )  # fmt: skip
+    try:
+        if not app.wait_idle(PAGE_TIMEOUT_S):
+            raise RuntimeError(f"the prediction took longer than {PAGE_TIMEOUT_S:.0f} s")
+        if app.result is None or app.view is None:
+            problems = "; ".join(app.errors) or "no person was found: give the person's box"
+            raise RuntimeError(f"nothing to show for {photo_name}: {problems}")
+        if app.scene.placement is not None:  # a page has no control panel to leave room for
+            position, look_at = framing(app.scene.placement, ASSUMED_ASPECT, 1.0)
+            app.server.initial_camera.position = position
+            app.server.initial_camera.look_at = look_at
+        caption = app.page_caption()
+        assert caption is not None
+        return ScenePage(app.page_html(), caption.text())
+    finally:
+        with _quiet_server():
+            app.stop()
+
+
+def _quiet_server() -> contextlib.AbstractContextManager[object]:
+    """Swallow what viser prints to stdout while the private server starts or stops."""
+    return contextlib.redirect_stdout(io.StringIO())
+
+
+def show(
+    posterior: BodyPosterior,
+    image: np.ndarray | None = None,
+    *,
+    photo_name: str = "the photo",
+    model_name: str = "the model that made this posterior",
+    num_samples: int = 100,
+    num_displayed: int = 10,
+    height: int = 520,
+) -> ScenePage:
+    """The explorer's scene of ``posterior``, for a notebook: the returned page shows inline
+    (``_repr_html_``) and can be saved (``.save(path)``).
+
+    Args:
+        posterior: a prediction, e.g. ``Predictor.predict(photo, occluders=[box])``.
+        image: ``(H, W, 3)`` uint8 RGB photo to draw; default the photo the posterior was
+            predicted from, occluders painted (``posterior.network_input.image``).
+        height: CSS pixels of the inline view.
+    """
+    network_input = getattr(posterior, "network_input", None)
+    if image is None:
+        if network_input is None:
+            raise ValueError("this posterior carries no photo: pass image=(H, W, 3) uint8 RGB")
+        image = network_input.image.pixels
+    boxes = () if network_input is None else tuple(map(tuple, network_input.occluders.boxes))
+    page = render_scene_page(
+        FixedPosterior(posterior), np.ascontiguousarray(image), occluders=boxes,
+        evidence=posterior.conditioned, photo_name=photo_name, model_name=model_name,
+        num_samples=num_samples, num_displayed=num_displayed,
+    )  # fmt: skip
+    return ScenePage(page.html, page.caption, height)
