@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ThreadPoolExecutor
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import torch
 import viser
 from viser._messages import GuiUpdateMessage
 
@@ -342,3 +344,37 @@ def test_refused_and_reordered_edits_show_the_box_in_use(built) -> None:
     x0.value = 350.0  # past x1: the corners are swapped in the state and in the fields
     assert actions.state.occluder(occluder.ident).box == (300.0, 60.0, 350.0, 240.0)
     assert (x0.value, x1.value) == (300.0, 350.0)
+
+
+def test_the_teaching_tab_shows_the_person_mask_and_what_the_shape_rests_on(built) -> None:
+    panels, _ = built
+    size = 32
+    mask = np.zeros((size, size), np.float32)
+    mask[8:24, 12:20] = 1.0
+    known = np.ones((size, size), bool)
+    known[:, :4] = False  # an occluder
+    fit = SimpleNamespace(terms=("keypoints",))
+    posterior = SimpleNamespace(
+        network_input=SimpleNamespace(person_mask=mask, person_mask_known=known), evidence_fit=fit
+    )
+    proxy = torch.zeros(18, size, size)
+    proxy[0, 0, 0] = 1.0
+    panels.teaching.show_shape_basis(posterior, proxy)
+    assert panels.teaching.person_mask.visible
+    picture = panels.teaching.person_mask.image
+    assert picture[16, 16, 2] > 200 and picture[16, 16, 0] < 100  # blue on the person
+    assert tuple(picture[16, 1]) == tuple(teaching.UNKNOWN_COLOUR.astype(np.uint8))  # occluded
+    text = panels.teaching.shape_text.content
+    assert "keypoints in the fit" in text and "not used for the shape" in text
+    fit.terms = ("keypoints", "silhouette")
+    panels.teaching.show_shape_basis(posterior, proxy)
+    assert "silhouette evidence" in panels.teaching.shape_text.content
+    assert "not used" not in panels.teaching.shape_text.content
+    reading = torch.zeros(19, size, size)  # an edges+mask network's input
+    panels.teaching.show_shape_basis(posterior, reading)
+    assert "keypoints and person mask" in panels.teaching.shape_text.content
+    panels.teaching.show_proxy(reading)  # heatmaps are the last 17 channels
+    none = SimpleNamespace(network_input=SimpleNamespace(person_mask=None, person_mask_known=None))
+    panels.teaching.show_shape_basis(none, proxy)
+    assert not panels.teaching.person_mask.visible
+    assert "No person mask" in panels.teaching.shape_text.content

@@ -1,5 +1,6 @@
 """The teaching tab: the selected joint's concentrations, the proxy representation the network
-saw, and a short explanation of what is on screen."""
+saw, the person mask and what the body's shape rests on, and a short explanation of what is on
+screen."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import numpy as np
 import torch
 import viser
 
+from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.explorer.panels.actions import StateActions
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
 
@@ -55,6 +57,63 @@ shows both).
 """
 
 
+MASK_COLOUR = np.array([70.0, 140.0, 255.0])
+"""The person mask's colour over the edges in the *Person mask* image (RGB)."""
+
+UNKNOWN_COLOUR = np.array([110.0, 110.0, 110.0])
+"""Where the photo says nothing (occluders, outside the photo) in the *Person mask* image."""
+
+
+def person_mask_image(
+    mask: np.ndarray, known: np.ndarray, edges: np.ndarray | None = None
+) -> np.ndarray:
+    """The *Person mask* picture: BlazePose's person probability in blue over the (dimmed) edge
+    image, grey where the photo says nothing.
+
+    Args:
+        mask: ``(S, S)`` float person probability in [0, 1], crop pixels.
+        known: ``(S, S)`` bool, where the photo shows body or background.
+        edges: ``(S, S)`` float edge image in [0, 1] (None: black).
+
+    Returns:
+        ``(S, S, 3)`` uint8 RGB.
+    """
+    base = np.zeros((*mask.shape, 3)) if edges is None else edges[..., None] * 90.0 * np.ones(3)
+    probability = np.clip(mask, 0.0, 1.0)[..., None]
+    picture = base * (1 - probability) + MASK_COLOUR * probability
+    picture = np.where(known[..., None], picture, UNKNOWN_COLOUR)
+    return np.clip(picture, 0, 255).astype(np.uint8)
+
+
+def shape_basis_text(has_mask: bool, reads_mask: bool, fit_terms: tuple[str, ...]) -> str:
+    """What the body's shape rests on, in a sentence or two (markdown).
+
+    Args:
+        has_mask: the detector gave a person mask for this photo.
+        reads_mask: the network's input includes the mask (an ``"edges+mask"`` network).
+        fit_terms: the evidence terms the conditioning fit weighed (empty: the network alone).
+    """
+    sources = ["the network's reading of the edges and keypoints"]
+    if reads_mask and has_mask:
+        sources[0] = "the network's reading of the edges, keypoints and person mask"
+    if "silhouette" in fit_terms:
+        sources.append("the person mask in the fit (silhouette evidence)")
+    elif fit_terms:
+        sources.append("the keypoints in the fit (they carry almost no shape)")
+    text = "**What the shape rests on:** " + " and ".join(sources) + "."
+    if not has_mask:
+        return text + " No person mask was found for this photo."
+    if "silhouette" not in fit_terms and not reads_mask:
+        text += (
+            " The mask (below) is not used for the shape: the shipped model returns close to the "
+            "average body (see docs/shape.md; `Predictor(silhouette_evidence=True)` fits it)."
+        )
+    return text
+
+
+NUM_KEYPOINTS = len(COCO17_NAMES)
+"""The proxy's last channels: one heatmap per COCO-17 keypoint."""
+
 JOINT_LABELS = tuple(name.replace("_", " ") for name in BODY_JOINT_NAMES)
 """The Joint menu's entries ("left elbow"), in :data:`BODY_JOINT_NAMES` order."""
 
@@ -78,12 +137,16 @@ class TeachingSection:
         axes_text: its concentrations as a table.
         proxy_edges: the edge image the network saw.
         proxy_heat: the 17 joint heatmaps over the edges.
+        shape_text: what the body's shape rests on.
+        person_mask: BlazePose's person mask in the crop (hidden without one).
     """
 
     joint: viser.GuiDropdownHandle[str]
     axes_text: viser.GuiMarkdownHandle
     proxy_edges: viser.GuiImageHandle
     proxy_heat: viser.GuiImageHandle
+    shape_text: viser.GuiMarkdownHandle
+    person_mask: viser.GuiImageHandle
 
     def show_teaching(
         self,
@@ -118,18 +181,39 @@ class TeachingSection:
         self.axes_text.content = f"{title}\n\n{header}\n" + "\n".join(rows) + note
 
     def show_proxy(self, proxy: torch.Tensor | None) -> None:
-        """The proxy representation the network saw (``(18, S, S)``: the edge image, then the
-        17 joint heatmaps), or nothing when the provider has none."""
+        """The proxy representation the network saw (``(C + 17, S, S)``: the edge image, an
+        ``"edges+mask"`` network's mask plane, then the 17 joint heatmaps), or nothing when the
+        provider has none."""
         self.proxy_edges.visible = self.proxy_heat.visible = proxy is not None
         if proxy is None:
             return
         array = proxy.detach().float().cpu().numpy()
         edges = (np.clip(array[0], 0, 1) * 255).astype(np.uint8)
         self.proxy_edges.image = np.repeat(edges[:, :, None], 3, axis=2)
-        heat = np.clip(array[1:].max(axis=0), 0, 1)
+        heat = np.clip(array[-NUM_KEYPOINTS:].max(axis=0), 0, 1)
         colour = np.stack([heat * 255, heat * 170, 40 + heat * 0], axis=-1)
         background = np.repeat(edges[:, :, None] * 0.35, 3, axis=2)
         self.proxy_heat.image = np.clip(np.maximum(colour, background), 0, 255).astype(np.uint8)
+
+    def show_shape_basis(self, posterior: object, proxy: torch.Tensor | None) -> None:
+        """The person mask and what the shape rests on, for ``posterior`` (a
+        :class:`hkpd.prediction.BodyPosterior`; a custom provider's posterior without a network
+        input shows only the sentence)."""
+        network_input = getattr(posterior, "network_input", None)
+        mask = getattr(network_input, "person_mask", None)
+        known = getattr(network_input, "person_mask_known", None)
+        fit = getattr(posterior, "evidence_fit", None)
+        terms = tuple(getattr(fit, "terms", ()) or ())
+        reads_mask = proxy is not None and proxy.shape[0] - NUM_KEYPOINTS == 2
+        self.shape_text.content = shape_basis_text(mask is not None, reads_mask, terms)
+        self.person_mask.visible = mask is not None and known is not None
+        if mask is not None and known is not None:
+            edges = (
+                None if proxy is None else np.clip(proxy[0].detach().float().cpu().numpy(), 0, 1)
+            )
+            if edges is not None and edges.shape != mask.shape:
+                edges = None
+            self.person_mask.image = person_mask_image(mask, known, edges)
 
 
 def build_teaching_section(gui: viser.GuiApi, actions: StateActions) -> TeachingSection:
@@ -141,9 +225,12 @@ def build_teaching_section(gui: viser.GuiApi, actions: StateActions) -> Teaching
         axes_text = gui.add_markdown("")
         proxy_edges = gui.add_image(np.zeros((64, 64, 3), np.uint8), label="Edges")
         proxy_heat = gui.add_image(np.zeros((64, 64, 3), np.uint8), label="Heatmaps")
+        shape_text = gui.add_markdown("")
+        person_mask = gui.add_image(np.zeros((64, 64, 3), np.uint8), label="Person mask")
+        person_mask.visible = False
         with gui.add_folder("What am I looking at?", expand_by_default=False):
             gui.add_markdown(EXPLANATION)
     joint.on_update(
         lambda _: actions.sampling_changed(actions.state.select_joint(joint_name(joint.value)))
     )
-    return TeachingSection(joint, axes_text, proxy_edges, proxy_heat)
+    return TeachingSection(joint, axes_text, proxy_edges, proxy_heat, shape_text, person_mask)
