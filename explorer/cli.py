@@ -265,9 +265,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     # From here Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (while the
     # server starts, inside the banner's print) cannot interrupt half-done work; a second
     # Ctrl-C while stopping does.
-    stop = threading.Event()
+    stop, by_ctrl_c = threading.Event(), threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: (by_ctrl_c.set(), stop.set()))
     try:
         app = app_class(
             provider,
@@ -286,11 +286,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if stop.is_set():  # Ctrl-C while the server was starting
         app.stop()
         return interrupted("hkpd-explore")
-    return _serve(app, args, stop)
+    status = _serve(app, args, stop)
+    return interrupted("hkpd-explore", "; stopped") if by_ctrl_c.is_set() else status
 
 
 def _serve(app: ExplorerApp, args: argparse.Namespace, stop: threading.Event) -> int:
-    """Serve until ``stop`` is set (Ctrl-C or SIGTERM, the normal way to stop: status 0)."""
+    """Serve until ``stop`` is set (Ctrl-C or SIGTERM, the normal ways to stop; ``main`` then
+    returns 130 after Ctrl-C, as for an interrupt at any other moment, and 0 after SIGTERM)."""
     if args.port not in (0, app.server.get_port()):  # taken between the check and the bind
         app.stop()
         raise SystemExit(_busy_port_message(args.port))
