@@ -31,7 +31,7 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from types import FrameType
+from types import FrameType, ModuleType
 
 INTERRUPTED_STATUS = 130
 """Exit status after Ctrl-C (128 + SIGINT), as shells report a program killed by it."""
@@ -98,6 +98,20 @@ def interrupted(program: str, detail: str = "") -> int:
     return INTERRUPTED_STATUS
 
 
+def _import_or_interrupted(name: str) -> ModuleType:
+    """Import ``name``; a Ctrl-C during it is a KeyboardInterrupt, also when the library
+    turned it into another error (an import interrupted half-way, caught by its importer,
+    leaves e.g. numpy's "cannot load module more than once per process" behind)."""
+    try:
+        module = importlib.import_module(name)
+    except Exception:
+        if _received.is_set():
+            raise KeyboardInterrupt from None
+        raise
+    raise_if_interrupted()
+    return module
+
+
 def run_command(program: str, argv: Sequence[str] | None = None) -> int:
     """Import ``program``'s module, run its ``main(argv)``; a Ctrl-C at any moment (also one
     that some library swallowed) gives one line and :data:`INTERRUPTED_STATUS`."""
@@ -106,12 +120,9 @@ def run_command(program: str, argv: Sequence[str] | None = None) -> int:
     _received.clear()
     try:
         for name in HEAVY_IMPORTS:
-            if name in LAZY_IMPORTS.get(program, ()):
-                continue
-            importlib.import_module(name)
-            raise_if_interrupted()
-        module = importlib.import_module(COMMANDS[program])
-        raise_if_interrupted()
+            if name not in LAZY_IMPORTS.get(program, ()):
+                _import_or_interrupted(name)
+        module = _import_or_interrupted(COMMANDS[program])
         main: Callable[[Sequence[str] | None], int] = module.main
         status = main(argv)
         if _received.is_set() and status != INTERRUPTED_STATUS:  # swallowed after the last check

@@ -90,8 +90,10 @@ def test_keypoint_only_fit_matches_the_reference(body64) -> None:
     reference = np.load(REFERENCE)
     record = _fit_record(fit)
     assert set(record) == set(reference.files)
+    # Bit-identical on the machine that recorded it; another CPU's float64 kernels move the
+    # iterative fit by up to ~1e-6 relative (measured 6.8e-7), far below any change of method.
     for name, value in record.items():
-        np.testing.assert_allclose(value, reference[name], rtol=1e-9, atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(value, reference[name], rtol=1e-5, atol=1e-8, err_msg=name)
     weights = record["keypoint_weights"]
     assert weights[7] < 0.5 < weights[:7].min() and weights[16] == 0.0  # outlier, hidden
 

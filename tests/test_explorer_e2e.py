@@ -98,8 +98,23 @@ def camera_settled(app, quiet_s: float = 3.0, timeout: float = 30.0) -> None:
             last, quiet_since = now, time.monotonic()
 
 
-def photo_to_canvas(app, pixels: np.ndarray) -> np.ndarray:
-    """Photo pixels ``(N, 2)`` to canvas pixels, through the browser's current camera."""
+def canvas_rect(page) -> tuple[float, float, float, float]:
+    """The 3D canvas's ``(left, top, width, height)`` in page pixels, where the mouse moves.
+
+    The camera's ``image_width``/``image_height`` are viser's render resolution, which it
+    lowers when frames are slow (software WebGL: 1225 x 752 reported for a 1400 x 859 canvas),
+    so mouse positions are taken from the page's own layout."""
+    rect = page.evaluate(
+        "() => { const r = [...document.querySelectorAll('canvas')].reduce((a, b) =>"
+        " a.width * a.height >= b.width * b.height ? a : b).getBoundingClientRect();"
+        " return [r.left, r.top, r.width, r.height]; }"
+    )
+    return tuple(float(value) for value in rect)
+
+
+def photo_to_canvas(app, pixels: np.ndarray, page) -> np.ndarray:
+    """Photo pixels ``(N, 2)`` to page pixels on the canvas, through the browser's current
+    camera."""
     placement = app.scene.placement
     camera = next(iter(app.server.get_clients().values())).camera
     local = placement.pixels_to_local(pixels)
@@ -115,7 +130,8 @@ def photo_to_canvas(app, pixels: np.ndarray) -> np.ndarray:
     tan_v = np.tan(camera.fov / 2)
     u = (in_camera[:, 0] / in_camera[:, 2] / (tan_v * camera.aspect) + 1) / 2
     v = (in_camera[:, 1] / in_camera[:, 2] / tan_v + 1) / 2
-    return np.stack([u * camera.image_width, v * camera.image_height], axis=1)
+    left, top, width, height = canvas_rect(page)
+    return np.stack([left + u * width, top + v * height], axis=1)
 
 
 def launch_chromium(playwright):
@@ -188,7 +204,7 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         # 1. Shift + drag a box over the left wrist on the photo.
         wrist = app.demo.keypoints2d[9]
         first = app.result
-        corners = photo_to_canvas(app, np.array([wrist - 28, wrist + 28]))
+        corners = photo_to_canvas(app, np.array([wrist - 28, wrist + 28]), page)
         shift_drag(page, corners[0], corners[1])
         wait_for(lambda: len(app.state.snapshot().occluders) == 1, what="the occluder")
         box = app.state.snapshot().occluders[0].box

@@ -26,6 +26,7 @@ from test_explorer_e2e import (
     VIEWPORT,
     camera_ready,
     camera_settled,
+    canvas_rect,
     launch_chromium,
     photo_to_canvas,
     playwright_api,
@@ -45,14 +46,16 @@ def limb(app, name: str) -> float:
     return float(np.mean([parts[p] for p in LIMB_SEGMENT_PARTS[name]]))
 
 
-def world_to_canvas(app, world: np.ndarray) -> np.ndarray:
-    """World points ``(N, 3)`` to canvas pixels, through the browser's current camera."""
+def world_to_canvas(app, world: np.ndarray, page) -> np.ndarray:
+    """World points ``(N, 3)`` to page pixels on the canvas, through the browser's current
+    camera."""
     camera = next(iter(app.server.get_clients().values())).camera
     in_camera = (world - camera.position) @ quaternion_to_matrix(camera.wxyz)
     tan_v = np.tan(camera.fov / 2)
     u = (in_camera[:, 0] / in_camera[:, 2] / (tan_v * camera.aspect) + 1) / 2
     v = (in_camera[:, 1] / in_camera[:, 2] / tan_v + 1) / 2
-    return np.stack([u * camera.image_width, v * camera.image_height], axis=1)
+    left, top, width, height = canvas_rect(page)
+    return np.stack([left + u * width, top + v * height], axis=1)
 
 
 def screenshot(page) -> np.ndarray:
@@ -114,19 +117,21 @@ def test_shipped_model_on_the_shipped_photo(app, tmp_path):
 
         placement = app.scene.placement
         photo_rect = photo_to_canvas(
-            app, np.array([[0.0, 0.0], [placement.width_px, placement.height_px]])
+            app, np.array([[0.0, 0.0], [placement.width_px, placement.height_px]]), page
         )
         half_w, half_h = LEGEND_SIZE_M[0] / 2, LEGEND_SIZE_M[1] / 2
         bar = np.array([[HEATMAP_OFFSET - half_w, LEGEND_HEIGHT + half_h, LEGEND_Z],
                         [HEATMAP_OFFSET + half_w, LEGEND_HEIGHT - half_h, LEGEND_Z]])  # fmt: skip
-        over_photo, over_bar = floor_pixels_over(app, page, [photo_rect, world_to_canvas(app, bar)])
+        over_photo, over_bar = floor_pixels_over(
+            app, page, [photo_rect, world_to_canvas(app, bar, page)]
+        )
         assert over_photo < 0.001 and over_bar < 0.001, (over_photo, over_bar)
 
         # Shift + drag a box over the right shin (knee to ankle, with a margin).
         knee, ankle = posterior.keypoints[14].numpy(), posterior.keypoints[16].numpy()
         low = np.minimum(knee, ankle) - 35
         high = np.maximum(knee, ankle) + 35
-        corners = photo_to_canvas(app, np.array([low, high]))
+        corners = photo_to_canvas(app, np.array([low, high]), page)
         first = app.result
         shift_drag(page, corners[0], corners[1])
         wait_for(lambda: len(app.state.snapshot().occluders) == 1, what="the occluder")
@@ -161,7 +166,7 @@ def test_shipped_model_on_the_shipped_photo(app, tmp_path):
         camera_settled(app)  # framed on the new photo: let the browser apply it
         page.get_by_role("button", name="Pick the person").click()
         wait_for(lambda: "Drag a box" in app.panels.status.line.content, what="picking")
-        corners = photo_to_canvas(app, np.array([[150.0, 40.0], [390.0, 330.0]]))
+        corners = photo_to_canvas(app, np.array([[150.0, 40.0], [390.0, 330.0]]), page)
         shift_drag(page, corners[0], corners[1])
         wait_for(lambda: app.state.snapshot().person_box is not None, what="the picked box")
         assert app.wait_idle(60) and not app.state.snapshot().occluders

@@ -69,6 +69,33 @@ def test_a_ctrl_c_swallowed_by_the_command_still_ends_in_130(monkeypatch, capsys
     interrupts.raise_if_interrupted()  # forgotten once the command has returned
 
 
+def test_an_import_broken_by_a_swallowed_ctrl_c_ends_in_130(monkeypatch, tmp_path, capsys):
+    """numpy interrupted half-way through its import, caught by torch's importer, fails the next
+    time with "cannot load module more than once per process": found by the [import] case
+    below at load 2 (exit 1 with a traceback). Such an error after a Ctrl-C is the Ctrl-C."""
+    (tmp_path / "hkpd_test_broken_import.py").write_text(
+        "import os, signal\n"
+        "try:\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "except KeyboardInterrupt:\n"
+        "    pass\n"
+        "raise ImportError('cannot load module more than once per process')\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(interrupts, "HEAVY_IMPORTS", ("hkpd_test_broken_import",))
+    assert interrupts.run_command("hkpd-predict", []) == INTERRUPTED_STATUS
+    assert capsys.readouterr().err == "hkpd-predict: interrupted\n"
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_import_error_without_a_ctrl_c_is_not_hidden(monkeypatch, tmp_path) -> None:
+    (tmp_path / "hkpd_test_failing_import.py").write_text("raise ImportError('no such thing')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(interrupts, "HEAVY_IMPORTS", ("hkpd_test_failing_import",))
+    with pytest.raises(ImportError, match="no such thing"):
+        interrupts.run_command("hkpd-predict", [])
+
+
 @pytest.fixture(scope="module")
 def photos(tmp_path_factory) -> Path:
     from hkpd.explorer.demo_photo import shipped_photo

@@ -76,9 +76,10 @@ def test_averaged_gradients_equal_one_process_with_the_doubled_batch(tmp_path) -
     averaged = [(a + b) / 2 for a, b in zip(*alone["train"], strict=True)]
     assert len(found["eval"]) == len(doubled) == len(list(network.parameters()))
     # batch statistics amplify float32 summation-order noise (thread counts differ between the
-    # workers and this process: 1.3e-4 of the largest gradient seen in CI), so "train" gets 1e-3;
-    # rank 0's own gradient is > 1e-2 away (below), so both bounds still tell the two apart
-    tolerance = {"eval": 1e-4, "train": 1e-3}
+    # workers and this process: 1.3e-4 of the largest gradient seen in CI, 1.1e-3 on another
+    # 2-core VM), so "train" gets 3e-3; rank 0's own gradient is > 1e-2 away (below), so both
+    # bounds still tell the two apart
+    tolerance = {"eval": 1e-4, "train": 3e-3}
     for expected, mode in ((doubled, "eval"), (averaged, "train")):
         for got, want in zip(found[mode], expected, strict=True):
             scale = float(want.abs().max()) + 1e-12

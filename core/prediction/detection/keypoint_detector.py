@@ -324,7 +324,8 @@ class KeypointDetector:
         box = detection.person_box
         width, height = loaded.original_size
         whole = np.round(np.clip(box, 0, [width, height, width, height]))
-        return all(self._takes(loaded, search, box) for search in (box, whole))
+        searches = (box,) if np.array_equal(whole, box) else (box, whole)
+        return all(self._takes(loaded, search, box) for search in searches)
 
     def _takes(self, loaded: LoadedImage, search_box: np.ndarray, person_box: np.ndarray) -> bool:
         """Whether :meth:`detect` inside ``search_box`` takes the person of ``person_box``."""
