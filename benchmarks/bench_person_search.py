@@ -97,14 +97,11 @@ def annotated_people(coco_dir: Path, split: str) -> dict[Path, list[Annotated]]:
     return _annotations(coco_dir, split)[0]
 
 
-def crowd_regions(coco_dir: Path, split: str) -> dict[Path, list[np.ndarray]]:
-    """Per photo of ``split`` that exists: the ``(x0, y0, x1, y1)`` boxes of its crowd regions."""
-    return _annotations(coco_dir, split)[1]
-
-
 def _annotations(
     coco_dir: Path, split: str
 ) -> tuple[dict[Path, list[Annotated]], dict[Path, list[np.ndarray]]]:
+    """Per photo of ``split`` that exists: its non-crowd annotated people, and the
+    ``(x0, y0, x1, y1)`` boxes of its crowd regions."""
     data = json.loads((coco_dir / "annotations" / f"person_keypoints_{split}.json").read_text())
     names = {image["id"]: coco_dir / split / image["file_name"] for image in data["images"]}
     people: dict[Path, list[Annotated]] = {}

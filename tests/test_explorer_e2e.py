@@ -116,7 +116,6 @@ def photo_to_canvas(app, pixels: np.ndarray, page) -> np.ndarray:
     """Photo pixels ``(N, 2)`` to page pixels on the canvas, through the browser's current
     camera."""
     placement = app.scene.placement
-    camera = next(iter(app.server.get_clients().values())).camera
     local = placement.pixels_to_local(pixels)
     world = np.stack(
         [
@@ -126,6 +125,13 @@ def photo_to_canvas(app, pixels: np.ndarray, page) -> np.ndarray:
         ],
         axis=1,
     )
+    return world_to_canvas(app, world, page)
+
+
+def world_to_canvas(app, world: np.ndarray, page) -> np.ndarray:
+    """World points ``(N, 3)`` to page pixels on the canvas, through the browser's current
+    camera."""
+    camera = next(iter(app.server.get_clients().values())).camera
     in_camera = (world - camera.position) @ quaternion_to_matrix(camera.wxyz)
     tan_v = np.tan(camera.fov / 2)
     u = (in_camera[:, 0] / in_camera[:, 2] / (tan_v * camera.aspect) + 1) / 2

@@ -26,16 +26,15 @@ from test_explorer_e2e import (
     VIEWPORT,
     camera_ready,
     camera_settled,
-    canvas_rect,
     launch_chromium,
     photo_to_canvas,
     playwright_api,
     shift_drag,
     wait_for,
+    world_to_canvas,
 )
 
 from hkpd.explorer.panels.photo import PICKED_CHOICE
-from hkpd.explorer.photo_geometry import quaternion_to_matrix
 from hkpd.explorer.posterior_view import part_uncertainty
 from hkpd.kinematic_tree import LIMB_SEGMENT_PARTS
 
@@ -44,18 +43,6 @@ def limb(app, name: str) -> float:
     labels = app.result.posterior.body.part_labels.cpu().numpy()
     parts = part_uncertainty(app.view.uncertainty, labels)
     return float(np.mean([parts[p] for p in LIMB_SEGMENT_PARTS[name]]))
-
-
-def world_to_canvas(app, world: np.ndarray, page) -> np.ndarray:
-    """World points ``(N, 3)`` to page pixels on the canvas, through the browser's current
-    camera."""
-    camera = next(iter(app.server.get_clients().values())).camera
-    in_camera = (world - camera.position) @ quaternion_to_matrix(camera.wxyz)
-    tan_v = np.tan(camera.fov / 2)
-    u = (in_camera[:, 0] / in_camera[:, 2] / (tan_v * camera.aspect) + 1) / 2
-    v = (in_camera[:, 1] / in_camera[:, 2] / tan_v + 1) / 2
-    left, top, width, height = canvas_rect(page)
-    return np.stack([left + u * width, top + v * height], axis=1)
 
 
 def screenshot(page) -> np.ndarray:
