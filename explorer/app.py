@@ -133,6 +133,9 @@ class ExplorerApp:
         self.errors: list[str] = []
         self.last_screenshot: np.ndarray | None = None
         self._lock = threading.RLock()
+        self._menu_lock = threading.RLock()
+        """Held while the Person menu is worked out from the state and set, so that the menu a
+        thread sets is never older than one another thread set after a newer person box."""
         self._image = image
         self._image_token = 0
         self._placed_token = -1
@@ -272,11 +275,12 @@ class ExplorerApp:
     def _show_person_menu(self) -> None:
         """The Person menu for the photo's people, naming whom the person box holds: one of
         them, or a box the user picked ("Your box")."""
-        people, box = self.people, self.state.snapshot().person_box
-        width, height = self.state.image_size
-        listed = [clamp_box(person, width, height) for person in people]
-        choice = 0 if box is None else listed.index(box) if box in listed else None
-        self.panels.photo.show_people(len(people), choice)
+        with self._menu_lock:
+            people, box = self.people, self.state.snapshot().person_box
+            width, height = self.state.image_size
+            listed = [clamp_box(person, width, height) for person in people]
+            choice = 0 if box is None else listed.index(box) if box in listed else None
+            self.panels.photo.show_people(len(people), choice)
 
     @property
     def people(self) -> tuple[Box, ...]:

@@ -6,6 +6,8 @@ predictor (``test_explorer_double.py``) stands in for the model."""
 from __future__ import annotations
 
 import io
+import threading
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -109,6 +111,37 @@ def test_the_person_menu_follows_a_picked_box():
         assert explorer.set_person_box(None) and explorer.wait_idle(30)
         assert menu.value.startswith("Person 1 of 2")
         assert not explorer.errors
+    finally:
+        explorer.stop()
+
+
+def test_a_people_search_ending_during_a_pick_leaves_the_picked_box_in_the_menu(monkeypatch):
+    """The people lane sets the menu from the state as it read it; a pick in between must not
+    be overwritten by that older menu (seen in CI: "(one person)" after a pick on a person-less
+    upload). The menu is slowed down here so that the pick lands inside that window."""
+    provider = NobodyOutsideBoxes()
+    explorer = ExplorerApp(provider, provider.double.scene.image, port=0)
+    try:
+        assert explorer.wait_idle(30)
+        section = explorer.panels.photo
+        shown = type(section).show_people
+        reading = threading.Event()
+
+        def slow_show_people(self, count, choice=0):
+            if threading.current_thread() is not threading.main_thread():
+                reading.set()
+                time.sleep(0.3)  # the search's menu, worked out before the pick
+            shown(self, count, choice)
+
+        monkeypatch.setattr(type(section), "show_people", slow_show_people)
+        search = threading.Thread(target=explorer._show_person_menu)
+        search.start()
+        assert reading.wait(5)
+        explorer.pick_person_next()
+        assert explorer.set_person_box((20.0, 20.0, 300.0, 500.0))
+        search.join(5)
+        assert section.people.value == PICKED_CHOICE
+        assert explorer.wait_idle(30) and not explorer.errors
     finally:
         explorer.stop()
 
