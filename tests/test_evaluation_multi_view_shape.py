@@ -82,3 +82,64 @@ def test_eval_flag_prints_the_multi_view_table(tmp_path, capsys) -> None:
     assert rows[-5:] == ["1 photo", "2 photos", "3 photos", "4 photos", "5 photos"]
     assert eval_main([str(checkpoint), "--multi-view-shape", "-1"]) == 2
     assert "--multi-view-shape must be >= 0" in capsys.readouterr().err
+
+
+class _ShapePull:
+    """A toy evidence term: "shape coefficient 1 is 3 ± 0.05" (an over-sure silhouette)."""
+
+    name = "shape_pull"
+    residual_shape = (1, 1)
+    robust_scale = None
+    needs_vertices = False
+    surface_vertices = None
+
+    def residuals(self, posed):
+        return ((posed.betas[..., 1] - 3.0) / 0.05)[..., None, None]
+
+
+def test_evidence_views_are_the_network_views_and_their_terms_reach_each_fit() -> None:
+    from hkpd.conditioning import EvidenceConfig
+    from hkpd.evaluation.multi_view_evidence import predict_multi_view_evidence_shapes
+    from hkpd.evaluation.shape_eval import MaskedExample, no_extra_terms
+
+    generator = SyntheticDataGenerator(ProceduralPosePrior(), SyntheticDataConfig(image_size=64))
+    network = RecordingNetwork().eval()
+    seen: list[MaskedExample] = []
+
+    def pull(example: MaskedExample) -> list:
+        seen.append(example)
+        return [_ShapePull()]
+
+    predictions = predict_multi_view_evidence_shapes(
+        network, generator, {"evidence": no_extra_terms, "pulled": pull}, EvidenceConfig(),
+        bodies=3, views=2, batch_size=2,
+    )  # fmt: skip
+    assert list(predictions) == ["network", "evidence", "pulled"]
+    plain = predict_multi_view_shapes(RecordingNetwork().eval(), generator, 3, 2, batch_size=2)
+    # The same bodies and views as the network-only table: the same readings.
+    torch.testing.assert_close(predictions["network"].true_betas, plain.true_betas)
+    torch.testing.assert_close(predictions["network"].means, plain.means)
+    assert len(seen) == 6 and all(bool(e.silhouette.any()) for e in seen)  # 2 views x 3 bodies
+    for name in ("evidence", "pulled"):
+        assert predictions[name].means.shape == predictions[name].stds.shape == (2, 3, 10)
+        assert (predictions[name].stds > 0).all()
+    # The pull reaches every view's fit, and only the posterior it was given to.
+    assert (predictions["pulled"].means[..., 1] - 3.0).abs().max() < 0.3
+    assert (predictions["evidence"].means[..., 1] - 3.0).abs().min() > 0.5
+    with pytest.raises(ValueError, match="differ"):
+        predict_multi_view_evidence_shapes(
+            network, generator, {"network": no_extra_terms}, EvidenceConfig(), bodies=1, views=1
+        )
+
+
+def test_eval_flag_with_evidence_adds_the_evidence_posteriors_tables(tmp_path, capsys) -> None:
+    config = NetworkConfig(backbone_base_width=8, image_size=64)
+    checkpoint = save_checkpoint(
+        tmp_path / "tiny.pt", DistributionNetwork(config), config.to_dict(), 0, {}, 0
+    )
+    arguments = [str(checkpoint), "--no-synthetic", "--multi-view-shape", "1", "--evidence"]
+    assert eval_main([*arguments, "--silhouette-evidence"]) == 0
+    text = capsys.readouterr().out
+    for name in ("network", "evidence", "evidence_silhouette"):
+        assert f"one person, {name} posterior" in text
+    assert text.count("PVE-T-SC probabilistic (mm)") == 4  # the plain table and three more

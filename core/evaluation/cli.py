@@ -108,7 +108,9 @@ def _add_synthetic_arguments(parser: argparse.ArgumentParser) -> None:
         default=0,
         metavar="BODIES",
         help="also score shape from 1-5 photos of one person on this many synthetic bodies "
-        "(5 renders each: single image, mean and probabilistic combination; e.g. 100)",
+        "(5 renders each: single image, mean and probabilistic combination; e.g. 100; with "
+        "--evidence also through the evidence posterior, and with --silhouette-evidence the "
+        "person mask too: ~0.3 s a view)",
     )
     parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
 
@@ -617,7 +619,8 @@ def _turned_people(people: list, folder: Path) -> dict[int, list]:
 
 
 def _multi_view_shape_report(arguments: argparse.Namespace, device: torch.device) -> str:
-    """The multi-photo shape table of every checkpoint (:mod:`hkpd.evaluation.multi_view_shape`)."""
+    """The multi-photo shape table of every checkpoint (:mod:`hkpd.evaluation.multi_view_shape`)
+    and, with ``--evidence``, the evidence posteriors' (:mod:`hkpd.evaluation.multi_view_evidence`)."""
     from hkpd.evaluation import multi_view_shape as multi
     from hkpd.evaluation.test_set import network_and_generator
 
@@ -633,6 +636,43 @@ def _multi_view_shape_report(arguments: argparse.Namespace, device: torch.device
             f"{arguments.multi_view_shape} synthetic bodies x 5 views (test poses, seed "
             f"{multi.MULTI_VIEW_SEED}; every subset of n views)\n\n"
             + markdown_table(rows, list(next(iter(rows.values()))))
+        )
+        if arguments.evidence:
+            parts.append(_multi_view_evidence_report(arguments, checkpoint, network, generator))
+    return "\n\n".join(parts)
+
+
+def _multi_view_evidence_report(
+    arguments: argparse.Namespace, checkpoint: Path, network: torch.nn.Module, generator
+) -> str:
+    """The multi-photo shape tables of the evidence posteriors of one checkpoint (keypoints;
+    with ``--silhouette-evidence`` the keypoints and the mask too), the network read as the
+    predictor reads."""
+    from hkpd.evaluation import multi_view_shape as multi
+    from hkpd.evaluation.multi_view_evidence import predict_multi_view_evidence_shapes
+    from hkpd.evaluation.shape_eval import no_extra_terms, silhouette_terms_for
+    from hkpd.evaluation.test_set import stored_evidence_settings
+    from hkpd.prediction.readings import ReadingConfig
+    from hkpd.prediction.readings.proxy_reader import ProxyReader
+
+    mirror, read = _mirror_reading(arguments)
+    posteriors = {"evidence": no_extra_terms}
+    if arguments.silhouette_evidence:
+        posteriors["evidence_silhouette"] = silhouette_terms_for(generator.body)
+    reader = ProxyReader(
+        network.eval(), ReadingConfig(mirror=mirror), upright=False, body=generator.body
+    )
+    predictions = predict_multi_view_evidence_shapes(
+        reader, generator, posteriors, stored_evidence_settings(checkpoint),
+        bodies=arguments.multi_view_shape, views=5,
+    )  # fmt: skip
+    parts = []
+    for name, prediction in predictions.items():
+        rows = multi.labelled(multi.multi_view_shape_table(prediction, generator.body))
+        parts.append(
+            f"### Shape from 1-5 photos of one person, {name} posterior: {checkpoint}, "
+            f"{arguments.multi_view_shape} synthetic bodies x 5 views, detector-like keypoints "
+            f"and masks{read}\n\n" + markdown_table(rows, list(next(iter(rows.values()))))
         )
     return "\n\n".join(parts)
 
