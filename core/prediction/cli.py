@@ -4,7 +4,7 @@ Usage::
 
     hkpd-predict IMAGE_OR_DIR... --out DIR [--model PATH] [--samples 10]
                  [--format ply|glb|obj|npz ...] [--bbox X0 Y0 X1 Y1] [--device auto] [--seed 0]
-                 [--uncertainty-samples 100] [--same-person] [--overwrite]
+                 [--uncertainty-samples 100] [--same-person] [--silhouette-evidence] [--overwrite]
 
 Folders are searched recursively for images (by extension), in sorted order. For every photo
 it writes into ``DIR/<image stem>/``:
@@ -119,6 +119,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="return the network's own distribution instead of conditioning it on the detected "
         "2D keypoints (the paper's method; docs/evidence.md)",
+    )
+    parser.add_argument(
+        "--silhouette-evidence",
+        action="store_true",
+        help="also condition on BlazePose's person mask: the body's outline is fitted to the "
+        "mask as well as to the keypoints (off by default: it helps people alone in the photo "
+        "in close-fitting clothes; loose clothing or a second person in the mask pulls the "
+        "body wider; docs/shape.md)",
     )
     parser.add_argument(
         "--bbox",
@@ -300,8 +308,9 @@ def predict_photo(
 
     summary_path = folder / "summary.json"
     files = [path.relative_to(folder).as_posix() for path in written] + [summary_path.name]
+    silhouette = bool(getattr(predictor, "silhouette_evidence", False)) and evidence
     summary = _photo_summary(
-        image, posterior, mode, uncertainty_np, uncertainty_samples, scale, evidence
+        image, posterior, mode, uncertainty_np, uncertainty_samples, scale, evidence, silhouette
     )
     summary.update(
         {
@@ -321,10 +330,21 @@ def predict_photo(
         files=files,
         seconds=timings["total_s"],
         person_box=tuple(float(v) for v in posterior.network_input.detection.person_box),
-        note=posterior.fallback_reason and f"network posterior ({posterior.fallback_reason})",
+        note=_photo_note(posterior, silhouette),
         shape_mean=posterior.shape_mean.detach().cpu(),
         shape_std=posterior.shape_std.detach().cpu(),
     )
+
+
+def _photo_note(posterior: BodyPosterior, silhouette: bool) -> str | None:
+    """The photo's console note: why the evidence fit fell back, or that a requested person
+    mask was missing (the fit then used the keypoints alone); None when all went as asked."""
+    if posterior.fallback_reason:
+        return f"network posterior ({posterior.fallback_reason})"
+    fit = posterior.evidence_fit
+    if silhouette and fit is not None and "silhouette" not in fit.terms:
+        return "no person mask: keypoints only"
+    return None
 
 
 def _write_meshes(
@@ -401,6 +421,7 @@ def _photo_summary(
     uncertainty_samples: int,
     scale: UncertaintyColourScale,
     evidence: bool,
+    silhouette: bool = False,
 ) -> dict[str, object]:
     """What ``summary.json`` says about the photo, the person, the crop, the keypoints and the
     ``(V,)`` uncertainty (metres, from ``uncertainty_samples`` samples); :func:`predict_photo`
@@ -417,7 +438,7 @@ def _photo_summary(
             "note": "BlazePose takes one person (usually the largest, most central); pass "
             "--bbox x0 y0 x1 y1 to pick another",
         },
-        "posterior": _posterior_summary(posterior, evidence),
+        "posterior": _posterior_summary(posterior, evidence, silhouette),
         "crop": {
             "centre": crop.centre,
             "side": crop.side,
@@ -439,12 +460,16 @@ def _photo_summary(
     }
 
 
-def _posterior_summary(posterior: BodyPosterior, evidence: bool) -> dict[str, object]:
-    """What ``summary.json`` says about where the distribution comes from."""
+def _posterior_summary(
+    posterior: BodyPosterior, evidence: bool, silhouette: bool = False
+) -> dict[str, object]:
+    """What ``summary.json`` says about where the distribution comes from (``silhouette``: the
+    person mask was asked for as evidence, ``--silhouette-evidence``)."""
     fit = posterior.evidence_fit
     summary: dict[str, object] = {
         "source": posterior.source,
         "evidence_requested": evidence,
+        "silhouette_requested": silhouette,
         "fallback_reason": posterior.fallback_reason,
         "upright_tilt_degrees": posterior.upright_tilt_degrees,
         "mirror_read": posterior.mirror_read,
@@ -460,7 +485,12 @@ def _posterior_summary(posterior: BodyPosterior, evidence: bool) -> dict[str, ob
             "cost": fit.cost,
             "seconds": round(fit.seconds, 4),
             "keypoint_weights": [round(float(w), 4) for w in fit.keypoint_weights],
+            "terms": list(fit.terms),
         }
+        if silhouette and "silhouette" not in fit.terms:
+            summary["silhouette_note"] = (
+                "the detector gave no person mask for this photo: the fit used the keypoints alone"
+            )
     return summary
 
 
@@ -506,6 +536,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return interrupted(PROG, " while loading the model; no photo was predicted")
     if predictor is None:
         return 2
+    if args.silhouette_evidence:
+        predictor.silhouette_evidence = True
     model_path = args.model or "shipped model (hkpd.assets/models/hkpd_hierarchical.pt)"
 
     grad_was_enabled = torch.is_grad_enabled()
@@ -554,6 +586,11 @@ def _checked_options(
     bbox = parse_bbox(args.bbox)
     if args.samples < 0:
         raise UsageError(f"--samples must be >= 0, got {args.samples}")
+    if args.silhouette_evidence and args.no_evidence:
+        raise UsageError(
+            "--silhouette-evidence weighs the person mask in the evidence fit, which "
+            "--no-evidence turns off; give one of them"
+        )
     if args.uncertainty_samples < 2:
         raise UsageError(f"--uncertainty-samples must be >= 2, got {args.uncertainty_samples}")
     check_out_folder(args.out)
