@@ -620,7 +620,8 @@ def _turned_people(people: list, folder: Path) -> dict[int, list]:
 
 def _multi_view_shape_report(arguments: argparse.Namespace, device: torch.device) -> str:
     """The multi-photo shape table of every checkpoint (:mod:`hkpd.evaluation.multi_view_shape`)
-    and, with ``--evidence``, the evidence posteriors' (:mod:`hkpd.evaluation.multi_view_evidence`)."""
+    and, with ``--evidence``, the evidence posteriors' tables
+    (:mod:`hkpd.evaluation.multi_view_evidence`)."""
     from hkpd.evaluation import multi_view_shape as multi
     from hkpd.evaluation.test_set import network_and_generator
 
