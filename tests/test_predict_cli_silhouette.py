@@ -40,7 +40,12 @@ def _predict(photo, out, checkpoint, factory, monkeypatch, *flags):  # noqa: F81
 
 
 def test_the_mask_is_weighed_only_when_asked_and_summary_says_so(
-    photo, tmp_path, checkpoint, fake_predictor_factory, monkeypatch, capsys  # noqa: F811
+    photo,
+    tmp_path,
+    checkpoint,  # noqa: F811
+    fake_predictor_factory,  # noqa: F811
+    monkeypatch,
+    capsys,
 ) -> None:
     code, plain = _predict(photo, tmp_path / "a", checkpoint, fake_predictor_factory, monkeypatch)
     assert code == 0
@@ -58,7 +63,12 @@ def test_the_mask_is_weighed_only_when_asked_and_summary_says_so(
 
 
 def test_without_a_mask_the_photo_says_keypoints_only(
-    photo, tmp_path, checkpoint, scene, monkeypatch, capsys  # noqa: F811
+    photo,
+    tmp_path,
+    checkpoint,  # noqa: F811
+    scene,  # noqa: F811
+    monkeypatch,
+    capsys,
 ) -> None:
     from hkpd.network.checkpoint import load_network
     from hkpd.prediction.predictor import Predictor
@@ -80,7 +90,12 @@ def test_without_a_mask_the_photo_says_keypoints_only(
 
 
 def test_silhouette_with_no_evidence_is_a_usage_error(
-    photo, tmp_path, checkpoint, fake_predictor_factory, monkeypatch, capsys  # noqa: F811
+    photo,
+    tmp_path,
+    checkpoint,  # noqa: F811
+    fake_predictor_factory,  # noqa: F811
+    monkeypatch,
+    capsys,
 ) -> None:
     code, _ = _predict(photo, tmp_path / "out", checkpoint, fake_predictor_factory, monkeypatch,
                        "--silhouette-evidence", "--no-evidence")  # fmt: skip
