@@ -18,6 +18,7 @@ import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import torch
@@ -37,7 +38,12 @@ from hkpd.explorer.photo_geometry import (
     screen_rect_to_box,
 )
 from hkpd.explorer.posterior_view import PosteriorView, compute_view
-from hkpd.explorer.provider import Box, PosteriorProvider, PredictionResult
+from hkpd.explorer.provider import (
+    Box,
+    MaskFittingProvider,
+    PosteriorProvider,
+    PredictionResult,
+)
 from hkpd.explorer.scene import COMBINED_OFFSET, HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
 from hkpd.explorer.state import (
     MAX_OCCLUDERS,
@@ -102,6 +108,9 @@ class ExplorerApp:
         person_box: ``(x0, y0, x1, y1)``: look for the person only there in the first photo.
         occluders: boxes ``(x0, y0, x1, y1)`` (photo pixels) hidden in the first prediction.
         evidence: condition the first prediction on the photo's keypoints (else the network).
+        silhouette: with ``evidence``, fit the person mask too (the *Fit the person mask*
+            switch; only for a provider that can, :class:`MaskFittingProvider`: ignored
+            otherwise).
         photo_name, model_name: what the photo and the model are called in saved pages'
             captions (an uploaded photo goes by its file name).
 
@@ -121,6 +130,7 @@ class ExplorerApp:
         person_box: tuple[float, float, float, float] | None = None,
         occluders: Sequence[Box] = (),
         evidence: bool = True,
+        silhouette: bool = False,
         photo_name: str = "the photo",
         model_name: str = "the model",
     ) -> None:
@@ -156,6 +166,7 @@ class ExplorerApp:
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         self.scene = ExplorerScene(self.server)
         self.panels = build_panels(self.server, self)
+        self.panels.photo.silhouette.visible = self.fits_person_mask
         self.server.scene.on_rect_select(modifier="shift")(self._on_rect_select)
         self.server.on_client_connect(lambda client: self._frame_client(client, wait_s=5.0))
         self._plain_drag = False
@@ -164,6 +175,10 @@ class ExplorerApp:
         self._fit_visible, self._fit_opacity = True, DEFAULT_FIT_OPACITY
         self.state.set_image(image.shape[1], image.shape[0], person_box)
         self.state.set_evidence(evidence)
+        self.state.set_silhouette(silhouette and self.fits_person_mask)
+        self.panels.photo.evidence.value = self.state.evidence
+        self.panels.photo.silhouette.value = self.state.silhouette
+        self.panels.photo.silhouette.disabled = not self.state.evidence
         for box in occluders:
             if self.state.add_occluder(box) is None:
                 self.server.stop()
@@ -261,7 +276,34 @@ class ExplorerApp:
     def set_evidence(self, enabled: bool) -> None:
         """Condition on the photo's 2D keypoints, or show the network alone (predicts again)."""
         if self.state.set_evidence(enabled):
+            self.panels.photo.silhouette.disabled = not enabled
             self.worker.submit("predict", self._predict_job)
+
+    @property
+    def fits_person_mask(self) -> bool:
+        """The provider can fit the person mask (:class:`MaskFittingProvider`)."""
+        return bool(getattr(self.provider, "fits_person_mask", False))
+
+    def set_silhouette(self, enabled: bool) -> None:
+        """Fit the person mask as well as the keypoints, or the keypoints alone (predicts
+        again; only for a provider that can, :attr:`fits_person_mask`)."""
+        if self.fits_person_mask and self.state.set_silhouette(enabled):
+            self.worker.submit("predict", self._predict_job)
+
+    def _provider_predict(
+        self,
+        image: np.ndarray,
+        boxes: Sequence[Box],
+        evidence: bool,
+        silhouette: bool,
+        bbox: Box | None = None,
+    ) -> PredictionResult:
+        """The provider's prediction; the person mask is asked for only with ``evidence`` and
+        ``silhouette`` both on, so providers that cannot fit it work as before."""
+        if evidence and silhouette and self.fits_person_mask:
+            provider = cast(MaskFittingProvider, self.provider)
+            return provider.predict(image, boxes, evidence=True, bbox=bbox, silhouette=True)
+        return self.provider.predict(image, boxes, evidence=evidence, bbox=bbox)
 
     def set_person_box(self, box: tuple[float, float, float, float] | None) -> bool:
         """Look for the person only inside ``box`` (None: anywhere); predicts again."""
@@ -449,14 +491,15 @@ class ExplorerApp:
         started = time.perf_counter()
         self.panels.status.show_busy()
         try:
-            result = self.provider.predict(
-                image, snapshot.active_boxes, evidence=snapshot.evidence, bbox=snapshot.person_box
-            )
+            result = self._provider_predict(
+                image, snapshot.active_boxes, snapshot.evidence, snapshot.silhouette,
+                bbox=snapshot.person_box,
+            )  # fmt: skip
         except NoPersonFoundError:
             self._no_person(image, token)
             return
         self.timings.predict = time.perf_counter() - started
-        key = BaselineKey(token, snapshot.person_box, snapshot.evidence)
+        key = _baseline_key(token, snapshot.person_box, snapshot)
         self._show_prediction(result, image, token, key, not snapshot.active_boxes)
 
     def _find_people(self, image: np.ndarray, token: int) -> None:
@@ -517,7 +560,7 @@ class ExplorerApp:
         snapshot = self.state.snapshot()
         result: PredictionResult | None = None
         try:
-            result = self.provider.predict(image, [], evidence=snapshot.evidence)
+            result = self._provider_predict(image, [], snapshot.evidence, snapshot.silhouette)
         except NoPersonFoundError:
             pass  # the photo is shown all the same: the user picks the person on it
         except Exception as error:  # the predictor's own message says what is wrong
@@ -536,7 +579,7 @@ class ExplorerApp:
             self._notify(client, "Photo loaded", name)
             self._no_person(image, token, client)
             return
-        self._show_prediction(result, image, token, BaselineKey(token, None, snapshot.evidence))
+        self._show_prediction(result, image, token, _baseline_key(token, None, snapshot))
         self._notify(client, "Photo loaded", name)
 
     def _show_prediction(
@@ -585,10 +628,12 @@ class ExplorerApp:
         """Predict the queued photos of the same person, keep their shapes, show the result."""
         with self._lock:
             queue, self._same_person_queue = self._same_person_queue, []
-        evidence = self.state.snapshot().evidence
+        snapshot = self.state.snapshot()
         for image, name, client, token in queue:
             try:
-                posterior = self.provider.predict(image, [], evidence=evidence).posterior
+                posterior = self._provider_predict(
+                    image, [], snapshot.evidence, snapshot.silhouette
+                ).posterior
             except NoPersonFoundError:
                 self._notify(client, "Photo not added", f"{name}: no person found.", error=True)
                 continue
@@ -696,7 +741,9 @@ class ExplorerApp:
         return self.baselines.uncertainty(key, snapshot.num_samples, snapshot.seed)
 
     def _predict_baseline(self, image: np.ndarray, key: BaselineKey) -> BodyPosterior:
-        result = self.provider.predict(image, [], evidence=key.evidence, bbox=key.person_box)
+        result = self._provider_predict(
+            image, [], key.evidence, key.silhouette, bbox=key.person_box
+        )
         return result.posterior
 
     def _export_job(self, file_format: str, client: viser.ClientHandle) -> None:
@@ -769,6 +816,13 @@ class ExplorerApp:
         client.add_notification(
             title, body, auto_close_seconds=8.0 if error else 3.0, color="red" if error else None
         )
+
+
+def _baseline_key(token: int, person_box: Box | None, snapshot: StateSnapshot) -> BaselineKey:
+    """The baseline key of a prediction of photo ``token`` with the snapshot's evidence."""
+    return BaselineKey(
+        token, person_box, snapshot.evidence, snapshot.evidence and snapshot.silhouette
+    )
 
 
 def framing(

@@ -33,11 +33,13 @@ class BaselineKey:
         image_token: the app's counter of loaded photos.
         person_box: the box the person was looked for in (None: anywhere).
         evidence: conditioned on the 2D keypoints or the network alone.
+        silhouette: the person mask was fitted too.
     """
 
     image_token: int
     person_box: tuple[float, float, float, float] | None
     evidence: bool
+    silhouette: bool = False
 
 
 class BaselineCache:

@@ -80,6 +80,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="hide this box of the photo (photo pixels) from the start; repeat for more boxes",
     )
     parser.add_argument(
+        "--silhouette-evidence",
+        action="store_true",
+        help="start with 'Fit the person mask' on: the body's outline is fitted to BlazePose's "
+        "person mask as well as to the keypoints (best for one person in close-fitting clothes)",
+    )
+    parser.add_argument(
         "--export-html",
         metavar="OUT.html",
         default=None,
@@ -222,6 +228,7 @@ def _export_page(
             provider, image, occluders=occluders, person_box=person_box,
             photo_name=_photo_name(args), model_name=_model_name(args),
             num_samples=args.samples, num_displayed=args.meshes,
+            silhouette=args.silhouette_evidence,
         )  # fmt: skip
         written = page.save(target, force=args.force)
     except (ValueError, RuntimeError, OSError) as error:
@@ -278,6 +285,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             num_displayed=args.meshes,
             person_box=person_box,
             occluders=occluders,
+            silhouette=args.silhouette_evidence,
             photo_name=_photo_name(args),
             model_name=_model_name(args),
         )

@@ -9,6 +9,7 @@ choose among several people in a photo.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,6 +59,25 @@ class PosteriorProvider(Protocol):
         ...
 
 
+class MaskFittingProvider(PosteriorProvider, Protocol):
+    """A provider that can also fit the photo's person mask (optional for providers): the
+    explorer's *Fit the person mask* switch is offered only when ``fits_person_mask`` is True."""
+
+    fits_person_mask: bool
+
+    def predict(
+        self,
+        image: np.ndarray,
+        occluders: Sequence[Box],
+        evidence: bool = True,
+        bbox: Box | None = None,
+        silhouette: bool = False,
+    ) -> PredictionResult:
+        """As :meth:`PosteriorProvider.predict`; ``silhouette``: with ``evidence``, fit the
+        person mask (BlazePose's segmentation, the silhouette term) as well as the keypoints."""
+        ...
+
+
 class PeopleFinder(Protocol):
     """A provider that can also list every person in a photo (optional for providers)."""
 
@@ -74,9 +94,12 @@ class PredictorProvider:
     The proxy shown is ``posterior.network_input.proxy``, what the network saw.
     """
 
+    fits_person_mask = True
+
     def __init__(self, path: str | Path | None = None, device: str = "auto") -> None:
         self.predictor: Predictor = Predictor.from_pretrained(path, device=device)
         refuse_silhouette_model(self.predictor, "the explorer")
+        self._lock = threading.Lock()
 
     def predict(
         self,
@@ -84,9 +107,12 @@ class PredictorProvider:
         occluders: Sequence[Box],
         evidence: bool = True,
         bbox: Box | None = None,
+        silhouette: bool = False,
     ) -> PredictionResult:
         boxes = [tuple(map(float, box)) for box in occluders] or None
-        posterior = self.predictor.predict(image, occluders=boxes, bbox=bbox, evidence=evidence)
+        with self._lock:  # the predictor's switch holds for this call only
+            self.predictor.silhouette_evidence = silhouette
+            posterior = self.predictor.predict(image, occluders=boxes, bbox=bbox, evidence=evidence)
         return PredictionResult(posterior=posterior, proxy=posterior.network_input.proxy.cpu())
 
     def find_people(self, image: np.ndarray) -> list[Box]:

@@ -73,6 +73,7 @@ def render_scene_page(
     *,
     occluders: Sequence[Box] = (),
     evidence: bool = True,
+    silhouette: bool = False,
     person_box: Box | None = None,
     photo_name: str = "the photo",
     model_name: str = "the model",
@@ -80,7 +81,8 @@ def render_scene_page(
     num_displayed: int = 10,
 ) -> ScenePage:
     """The explorer's first view of ``image`` ``(H, W, 3)`` uint8 RGB with ``occluders``
-    (photo pixels) hidden, as a :class:`ScenePage`.
+    (photo pixels) hidden, as a :class:`ScenePage` (``silhouette``: with ``evidence``, the
+    person mask fitted too, for a provider that can).
 
     Raises:
         ValueError: an occluder is off the photo.
@@ -90,7 +92,8 @@ def render_scene_page(
         app = ExplorerApp(
             provider, image, host="127.0.0.1", port=0, num_samples=num_samples,
             num_displayed=num_displayed, person_box=person_box, occluders=occluders,
-            evidence=evidence, photo_name=photo_name, model_name=model_name,
+            evidence=evidence, silhouette=silhouette, photo_name=photo_name,
+            model_name=model_name,
         )  # fmt: skip
     try:
         if not app.wait_idle(PAGE_TIMEOUT_S):

@@ -118,6 +118,7 @@ class StateSnapshot:
     evidence: bool = True
     person_box: tuple[float, float, float, float] | None = None
     same_person: tuple[SamePersonShape, ...] = ()
+    silhouette: bool = False
 
     @property
     def active_boxes(self) -> list[tuple[float, float, float, float]]:
@@ -150,6 +151,7 @@ class ExplorerState:
     selected_joint: str = "left_elbow"
     evidence: bool = True
     person_box: tuple[float, float, float, float] | None = None
+    silhouette: bool = False
     _occluders: list[Occluder] = field(default_factory=list)
     _joint_exponents: list[float] = field(default_factory=lambda: [0.0] * NUM_BODY_JOINTS)
     _global_exponent: float = 0.0
@@ -179,6 +181,7 @@ class ExplorerState:
                 evidence=self.evidence,
                 person_box=self.person_box,
                 same_person=tuple(self._same_person),
+                silhouette=self.silhouette,
             )
 
     def occluder(self, ident: int) -> Occluder:
@@ -223,6 +226,16 @@ class ExplorerState:
             if self.evidence == bool(enabled):
                 return False
             self.evidence = bool(enabled)
+            self._prediction_version += 1
+            return True
+
+    def set_silhouette(self, enabled: bool) -> bool:
+        """Fit the person mask as well as the keypoints (True; only with :attr:`evidence`) or
+        the keypoints alone."""
+        with self._lock:
+            if self.silhouette == bool(enabled):
+                return False
+            self.silhouette = bool(enabled)
             self._prediction_version += 1
             return True
 

@@ -1,5 +1,5 @@
-"""The photo tab's main section: load a photo, evidence on/off, choose the person, draw and
-list occluders."""
+"""The photo tab's main section: load a photo, evidence on/off (keypoints, person mask), choose
+the person, draw and list occluders."""
 
 from __future__ import annotations
 
@@ -24,6 +24,10 @@ class PhotoActions(OccluderActions, Protocol):
 
     def set_evidence(self, enabled: bool) -> None:
         """Condition on the 2D keypoints, or show the network alone."""
+        ...
+
+    def set_silhouette(self, enabled: bool) -> None:
+        """Fit the person mask as well as the keypoints, or the keypoints alone."""
         ...
 
     def pick_person_next(self, enabled: bool = True) -> None:
@@ -59,6 +63,8 @@ class PhotoSection:
     Attributes:
         upload: "Load a photo".
         evidence: "Condition on 2D keypoints".
+        silhouette: "Fit the person mask" (hidden when the provider cannot; disabled while the
+            keypoints are off).
         pick: "Pick the person" (the next drag picks the person).
         forget: "Forget the person box".
         people: the person menu (hidden unless the photo shows several people).
@@ -69,6 +75,7 @@ class PhotoSection:
 
     upload: viser.GuiUploadButtonHandle
     evidence: viser.GuiCheckboxHandle
+    silhouette: viser.GuiCheckboxHandle
     pick: viser.GuiButtonHandle
     forget: viser.GuiButtonHandle
     people: viser.GuiDropdownHandle[str]
@@ -124,6 +131,14 @@ def build_photo_section(gui: viser.GuiApi, actions: PhotoActions) -> PhotoSectio
             hint="On: the network's distribution updated by the detected keypoints (default). "
             "Off: the network alone (the paper's method).",
         )
+        silhouette = gui.add_checkbox(
+            "Fit the person mask",
+            actions.state.silhouette,
+            disabled=not actions.state.evidence,
+            hint="Also fit the body's outline to BlazePose's person mask (the Teaching tab "
+            "shows the mask). Best for one person in close-fitting clothes; loose clothes, hair "
+            "or a second person in the mask make the body wider. About 0.2 s more per update.",
+        )
         pick = gui.add_button(
             "Pick the person",
             icon=viser.Icon.USER,
@@ -146,11 +161,14 @@ def build_photo_section(gui: viser.GuiApi, actions: PhotoActions) -> PhotoSectio
         clear = gui.add_button("Remove all occluders", icon=viser.Icon.TRASH)
         folder = gui.add_folder("Occluders", expand_by_default=True)
     occluders = OccluderList(gui, folder, actions)
-    section = PhotoSection(upload, evidence, pick, forget, people, draw_mode, clear, occluders)
+    section = PhotoSection(
+        upload, evidence, silhouette, pick, forget, people, draw_mode, clear, occluders
+    )
     upload.on_upload(
         lambda event: actions.load_upload(upload.value.name, upload.value.content, event.client)
     )
     evidence.on_update(lambda _: actions.set_evidence(evidence.value))
+    silhouette.on_update(lambda _: actions.set_silhouette(silhouette.value))
     pick.on_click(lambda _: actions.pick_person_next(True))
     forget.on_click(lambda _: actions.set_person_box(None))
     people.on_update(lambda _: _select_chosen_person(section, actions))

@@ -57,7 +57,11 @@ def source_text(posterior: BodyPosterior) -> str:
         text = f"Network only: {reason}."
     elif getattr(posterior, "conditioned", False):
         fit = posterior.evidence_fit
-        text = f"Conditioned on {fit.evidence_count} keypoints (fit {fit.seconds * 1000:.0f} ms)."
+        mask = " and the person mask" if "silhouette" in tuple(getattr(fit, "terms", ())) else ""
+        text = (
+            f"Conditioned on {fit.evidence_count} keypoints{mask} "
+            f"(fit {fit.seconds * 1000:.0f} ms)."
+        )
     else:
         text = "Network only."
     tilt = getattr(posterior, "upright_tilt_degrees", None)

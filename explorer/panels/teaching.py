@@ -106,7 +106,13 @@ def shape_basis_text(has_mask: bool, reads_mask: bool, fit_terms: tuple[str, ...
     if "silhouette" not in fit_terms and not reads_mask:
         text += (
             " The mask (below) is not used for the shape: the shipped model returns close to the "
-            "average body (see docs/shape.md; `Predictor(silhouette_evidence=True)` fits it)."
+            "average body. Tick *Fit the person mask* (Photo tab) to fit the body's outline to "
+            "it (docs/shape.md)."
+        )
+    elif "silhouette" in fit_terms:
+        text += (
+            " The outline follows the mask where the photo shows the person; girth and height "
+            "move most, the finer coefficients hardly (one view holds little of them)."
         )
     return text
 
