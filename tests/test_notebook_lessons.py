@@ -17,10 +17,12 @@ from hkpd.prediction import BodyPosterior, Predictor
 NOTEBOOK = Path(__file__).resolve().parents[1] / "docs" / "notebooks" / "lessons.ipynb"
 VARIABLE_TYPES = {
     "predictor": Predictor,
+    "fits_mask": Predictor,
     "posterior": BodyPosterior,
     "hidden": BodyPosterior,
     "sharp": BodyPosterior,
     "network": BodyPosterior,
+    "outline": BodyPosterior,
     "page": ScenePage,
 }
 """What the notebook's variables hold (the calls on them are checked against these types)."""
@@ -49,7 +51,7 @@ def _check_keywords(function, call: ast.Call, where: str) -> None:
 
 def test_the_lessons_notebook_calls_only_what_exists() -> None:
     sources = code_cells()
-    assert len(sources) == 4
+    assert len(sources) == 5
     namespace: dict[str, object] = {}
     checked = set()
     for index, source in enumerate(sources):
