@@ -47,3 +47,32 @@ def test_without_a_mask_the_fit_falls_back_to_the_keypoints(predictor) -> None:
         plain.close()
     assert posterior.network_input.person_mask is None
     assert posterior.conditioned and posterior.evidence_fit.terms == ("keypoints",)
+
+
+def test_a_mask_fit_marginalises_the_camera_for_the_shape(predictor) -> None:
+    from dataclasses import replace
+
+    from hkpd.conditioning import EvidenceConfig
+
+    assert EvidenceConfig().for_mask_evidence().rigid_spread == "shape"
+    for explicit in ("shape", "marginal"):
+        config = EvidenceConfig(rigid_spread=explicit)
+        assert config.for_mask_evidence() is config
+    photo = shipped_photo()
+    predictor.silhouette_evidence = True
+    try:
+        automatic = predictor.predict(photo)
+        saved = predictor.evidence_config
+        predictor.evidence_config = replace(saved, rigid_spread="shape")
+        try:
+            explicit = predictor.predict(photo)
+        finally:
+            predictor.evidence_config = saved
+    finally:
+        predictor.silhouette_evidence = False
+    # The predictor's mask fit is the "shape" Laplace step: the same posterior, bit for bit.
+    assert torch.equal(automatic.shape_std, explicit.shape_std)
+    assert torch.equal(automatic.F, explicit.F)
+    # Keypoints alone keep the product's default (camera held fixed): β₀ is surer there.
+    keypoints_only = predictor.predict(photo)
+    assert keypoints_only.shape_std[0] < automatic.shape_std[0]

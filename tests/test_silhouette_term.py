@@ -32,7 +32,7 @@ GIRTH = 2
 EXACT = SilhouetteConfig(
     outside_sigma=0.01, inside_sigma=0.02, boundary_sigma=0.05, inside_margin=0.0
 )
-"""Settings for an exact mask: half the default sigmas and no clothing margin."""
+"""Settings for an exact mask: a third of the default sigmas and no clothing margin."""
 
 
 @pytest.fixture(scope="module")

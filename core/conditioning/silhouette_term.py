@@ -87,9 +87,11 @@ class SilhouetteConfig:
 
     Attributes:
         outside_sigma: a body point outside the mask, noise of its distance to the mask, as a
-            fraction of the crop side (0.02 is 5 px in a 256 crop). The defaults were chosen
-            on synthetic validation data with detector-like masks (``docs/shape.md``);
-            an exact mask (a rendering) earns about half these sigmas and no margin.
+            fraction of the crop side (0.03 is 7.7 px in a 256 crop). The defaults were chosen
+            on synthetic validation data with masks that err as BlazePose's were measured to
+            (``docs/shape.md``, 2026-12-05; before: 0.02 / 0.04 / 0.1, margin 0.02, chosen on
+            lighter noise); an exact mask (a rendering) earns about a third of these sigmas
+            and no margin.
         inside_sigma: a point of the body's outline inside the mask, noise of its distance to
             the mask's boundary, same units (larger: clothing and hair make the mask larger
             than the body).
@@ -112,11 +114,11 @@ class SilhouetteConfig:
         threshold: mask probability at and above which a pixel counts as the person.
     """
 
-    outside_sigma: float = 0.02
-    inside_sigma: float = 0.04
-    boundary_sigma: float = 0.1
+    outside_sigma: float = 0.03
+    inside_sigma: float = 0.06
+    boundary_sigma: float = 0.15
     inside_band: float = 0.012
-    inside_margin: float = 0.02
+    inside_margin: float = 0.01
     rim_width: float = 0.2
     boundary_tolerance: float = 0.004
     robust_scale: float = 3.0

@@ -23,7 +23,12 @@ from hkpd.body import BodyModel
 from hkpd.conditioning import EvidenceConfig
 from hkpd.evaluation.evidence_synthetic import condition_batch
 from hkpd.evaluation.multi_view_shape import MULTI_VIEW_SEED, MultiViewPredictions
-from hkpd.evaluation.shape_eval import MASK_SEED_OFFSET, ExtraTermsFor, masked_examples
+from hkpd.evaluation.shape_eval import (
+    MASK_SEED_OFFSET,
+    ExtraTermsFor,
+    fit_config,
+    masked_examples,
+)
 from hkpd.prediction.predictor import float64_body
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
 from hkpd.synthesis.generator import SyntheticDataGenerator, batch_seed
@@ -106,7 +111,7 @@ def predict_multi_view_evidence_shapes(
             for name, terms_for in posteriors.items():
                 terms = [terms_for(example) for example in examples]
                 readings[name], _ = condition_batch(
-                    output, detected, reported, size, body64, config, extra_terms=terms
+                    output, detected, reported, size, body64, fit_config(config, terms), terms
                 )
             for name, reading in readings.items():
                 shape = reading.shape_distribution()

@@ -92,6 +92,13 @@ def silhouette_terms_for(body: BodyModel, config: SilhouetteConfig | None = None
     return terms
 
 
+def fit_config(config: EvidenceConfig, terms: Sequence[Sequence[EvidenceTerm]]) -> EvidenceConfig:
+    """The fit's settings for a batch whose examples get ``terms`` beyond the keypoints: the
+    predictor's rule (:meth:`EvidenceConfig.for_mask_evidence` when there are any), so the
+    synthetic rows score the posterior a user gets."""
+    return config.for_mask_evidence() if any(terms) else config
+
+
 def rendered_test_set(
     generator: SyntheticDataGenerator, count: int, seed: int = TEST_SET_SEED
 ) -> Iterator[RenderedBatch]:
@@ -186,7 +193,7 @@ def evaluate_shape_batches(
         for name, terms_for in posteriors.items():
             terms = [terms_for(example) for example in examples]
             conditioned, _ = condition_batch(
-                output, detected, reported, size, body64, config, extra_terms=terms
+                output, detected, reported, size, body64, fit_config(config, terms), terms
             )
             records.add(name, conditioned)
     truth = torch.cat(records.truth)

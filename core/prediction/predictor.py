@@ -217,12 +217,13 @@ class Predictor:
                 torch.as_tensor(prepared.evidence),
                 self.crop_size,
             )
+            mask_terms = self._mask_terms(prepared)
             fit = condition_on_keypoints(
                 self._float64_body(),
                 starts,
                 keypoint_evidence,
-                self.evidence_config,
-                extra_terms=self._mask_terms(prepared),
+                self.evidence_config.for_mask_evidence() if mask_terms else self.evidence_config,
+                extra_terms=mask_terms,
             )
         if fit.conditioned is None:
             return replace(network_posterior, evidence_fit=fit)
