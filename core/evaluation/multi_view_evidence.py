@@ -16,11 +16,13 @@ like the network's.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import torch
 
 from hkpd.body import BodyModel
 from hkpd.conditioning import EvidenceConfig
+from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.evidence_synthetic import condition_batch
 from hkpd.evaluation.multi_view_shape import MULTI_VIEW_SEED, MultiViewPredictions
 from hkpd.evaluation.shape_eval import (
@@ -31,7 +33,7 @@ from hkpd.evaluation.shape_eval import (
 )
 from hkpd.prediction.predictor import float64_body
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
-from hkpd.synthesis.generator import SyntheticDataGenerator, batch_seed
+from hkpd.synthesis.generator import RenderedBatch, SyntheticDataGenerator, batch_seed
 from hkpd.synthesis.mask_noise import MaskNoise
 
 NETWORK_POSTERIOR = "network"
@@ -100,19 +102,10 @@ def predict_multi_view_evidence_shapes(
             rendered = generator.generate(
                 betas.shape[0], batch_seed(seed, view * chunks + chunk), betas
             )
-            batch = rendered.batch
-            size = batch.proxy.shape[-1]
-            output = reader(batch.proxy)
-            readings = {NETWORK_POSTERIOR: output}
-            detected, reported = detector_like_keypoints(
-                batch.keypoints2d, batch.visible, size, keypoint_noise, keypoint_generator
-            )
-            examples = masked_examples(rendered, mask_noise, mask_generator)
-            for name, terms_for in posteriors.items():
-                terms = [terms_for(example) for example in examples]
-                readings[name], _ = condition_batch(
-                    output, detected, reported, size, body64, fit_config(config, terms), terms
-                )
+            readings = _read_batch(
+                reader, rendered, posteriors, config, body64,
+                _DetectorNoises(keypoint_noise, keypoint_generator, mask_noise, mask_generator),
+            )  # fmt: skip
             for name, reading in readings.items():
                 shape = reading.shape_distribution()
                 means[name][view].append(shape.mean.detach().float().cpu())
@@ -125,6 +118,41 @@ def predict_multi_view_evidence_shapes(
         )
         for name in names
     }
+
+
+@dataclass
+class _DetectorNoises:
+    """The detector-like keypoint and mask noise and their random streams."""
+
+    keypoints: DetectorNoise
+    keypoint_stream: torch.Generator
+    masks: MaskNoise
+    mask_stream: torch.Generator
+
+
+def _read_batch(
+    reader: torch.nn.Module,
+    rendered: RenderedBatch,
+    posteriors: Mapping[str, ExtraTermsFor],
+    config: EvidenceConfig,
+    body64: BodyModel,
+    noises: _DetectorNoises,
+) -> dict[str, BodyDistribution]:
+    """The network's reading of one rendered batch and each evidence posterior of it."""
+    batch = rendered.batch
+    size = batch.proxy.shape[-1]
+    output = reader(batch.proxy)
+    readings = {NETWORK_POSTERIOR: output}
+    detected, reported = detector_like_keypoints(
+        batch.keypoints2d, batch.visible, size, noises.keypoints, noises.keypoint_stream
+    )
+    examples = masked_examples(rendered, noises.masks, noises.mask_stream)
+    for name, terms_for in posteriors.items():
+        terms = [terms_for(example) for example in examples]
+        readings[name], _ = condition_batch(
+            output, detected, reported, size, body64, fit_config(config, terms), terms
+        )
+    return readings
 
 
 def _body_shapes(generator: SyntheticDataGenerator, bodies: int, seed: int) -> torch.Tensor:
