@@ -619,7 +619,9 @@ class ExplorerApp:
             posterior.keypoints.cpu().numpy(), posterior.confidences.cpu().numpy()
         )
         self.panels.teaching.show_proxy(result.proxy)
-        self.panels.teaching.show_shape_basis(posterior, result.proxy)
+        self.panels.teaching.show_shape_basis(
+            posterior, result.proxy, None if overlay is None else overlay.rgba
+        )
         self._sample_job()
         if self.state.snapshot().same_person or self.scene.combined_shown:
             self._show_combined()

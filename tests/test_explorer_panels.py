@@ -378,3 +378,26 @@ def test_the_teaching_tab_shows_the_person_mask_and_what_the_shape_rests_on(buil
     panels.teaching.show_shape_basis(none, proxy)
     assert not panels.teaching.person_mask.visible
     assert "No person mask" in panels.teaching.shape_text.content
+
+
+def test_the_person_mask_shows_the_mode_outline_and_its_iou(built) -> None:
+    panels, _ = built
+    size = 32
+    mask = np.zeros((size, size), np.float32)
+    mask[8:24, 12:20] = 1.0
+    known = np.ones((size, size), bool)
+    posterior = SimpleNamespace(
+        network_input=SimpleNamespace(person_mask=mask, person_mask_known=known),
+        evidence_fit=SimpleNamespace(terms=("keypoints", "silhouette")),
+    )
+    overlay = np.zeros((4 * size, 4 * size, 4), np.uint8)  # the render is finer than the crop
+    overlay[32:96, 48:64, 3] = 255  # the body: rows 8-23, columns 12-15 of the crop
+    panels.teaching.show_shape_basis(posterior, None, overlay)
+    picture = panels.teaching.person_mask.image
+    red = tuple(teaching.MODE_OUTLINE_COLOUR.astype(np.uint8))
+    assert tuple(picture[8, 12]) == red and tuple(picture[16, 15]) == red  # on the outline
+    assert tuple(picture[16, 13]) != red and tuple(picture[16, 18]) != red  # inside, beside
+    assert "IoU 0.50" in panels.teaching.shape_text.content  # half the mask's width
+    panels.teaching.show_shape_basis(posterior, None)  # no render: no outline, no IoU
+    assert "IoU" not in panels.teaching.shape_text.content
+    assert not (panels.teaching.person_mask.image == np.array(red, np.uint8)).all(-1).any()

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 import torch
 import viser
@@ -63,17 +64,24 @@ MASK_COLOUR = np.array([70.0, 140.0, 255.0])
 UNKNOWN_COLOUR = np.array([110.0, 110.0, 110.0])
 """Where the photo says nothing (occluders, outside the photo) in the *Person mask* image."""
 
+MODE_OUTLINE_COLOUR = np.array([255.0, 90.0, 60.0])
+"""The most likely body's outline over the mask in the *Person mask* image (RGB)."""
+
 
 def person_mask_image(
-    mask: np.ndarray, known: np.ndarray, edges: np.ndarray | None = None
+    mask: np.ndarray,
+    known: np.ndarray,
+    edges: np.ndarray | None = None,
+    mode: np.ndarray | None = None,
 ) -> np.ndarray:
     """The *Person mask* picture: BlazePose's person probability in blue over the (dimmed) edge
-    image, grey where the photo says nothing.
+    image, grey where the photo says nothing, and the most likely body's outline in red.
 
     Args:
         mask: ``(S, S)`` float person probability in [0, 1], crop pixels.
         known: ``(S, S)`` bool, where the photo shows body or background.
         edges: ``(S, S)`` float edge image in [0, 1] (None: black).
+        mode: ``(S, S)`` bool, the mode body's pixels in the same crop (None: no outline).
 
     Returns:
         ``(S, S, 3)`` uint8 RGB.
@@ -82,7 +90,32 @@ def person_mask_image(
     probability = np.clip(mask, 0.0, 1.0)[..., None]
     picture = base * (1 - probability) + MASK_COLOUR * probability
     picture = np.where(known[..., None], picture, UNKNOWN_COLOUR)
+    if mode is not None:
+        picture[outline(mode)] = MODE_OUTLINE_COLOUR
     return np.clip(picture, 0, 255).astype(np.uint8)
+
+
+def outline(region: np.ndarray) -> np.ndarray:
+    """``(S, S)`` bool: the pixels of ``region`` with a 4-neighbour outside it (or the edge)."""
+    padded = np.pad(region, 1, constant_values=False)
+    inner = padded[:-2, 1:-1] & padded[2:, 1:-1] & padded[1:-1, :-2] & padded[1:-1, 2:]
+    return region & ~inner
+
+
+def mode_in_crop(overlay_rgba: np.ndarray, size: int) -> np.ndarray:
+    """``(size, size)`` bool: the mode's pixels from its overlay render over the crop box
+    (``(R, R, 4)`` uint8, :class:`hkpd.prediction.exports.fit_overlay.FitOverlay`'s ``rgba``),
+    resampled to the crop's pixels (covered at least half)."""
+    alpha = overlay_rgba[..., 3].astype(np.float32) / 255.0
+    return cv2.resize(alpha, (size, size), interpolation=cv2.INTER_AREA) >= 0.5
+
+
+def mask_iou(mode: np.ndarray, mask: np.ndarray, known: np.ndarray) -> float:
+    """IoU of the mode's pixels and the mask at probability 0.5, over known pixels."""
+    person = (mask >= 0.5) & known
+    body = mode & known
+    union = int((person | body).sum())
+    return float((person & body).sum() / union) if union else 0.0
 
 
 def shape_basis_text(has_mask: bool, reads_mask: bool, fit_terms: tuple[str, ...]) -> str:
@@ -201,25 +234,40 @@ class TeachingSection:
         background = np.repeat(edges[:, :, None] * 0.35, 3, axis=2)
         self.proxy_heat.image = np.clip(np.maximum(colour, background), 0, 255).astype(np.uint8)
 
-    def show_shape_basis(self, posterior: object, proxy: torch.Tensor | None) -> None:
+    def show_shape_basis(
+        self,
+        posterior: object,
+        proxy: torch.Tensor | None,
+        overlay_rgba: np.ndarray | None = None,
+    ) -> None:
         """The person mask and what the shape rests on, for ``posterior`` (a
         :class:`hkpd.prediction.BodyPosterior`; a custom provider's posterior without a network
-        input shows only the sentence)."""
+        input shows only the sentence). ``overlay_rgba``: the mode's render over the crop box
+        (the app's fit overlay): its outline is drawn on the mask and its IoU with the mask
+        said."""
         network_input = getattr(posterior, "network_input", None)
         mask = getattr(network_input, "person_mask", None)
         known = getattr(network_input, "person_mask_known", None)
         fit = getattr(posterior, "evidence_fit", None)
         terms = tuple(getattr(fit, "terms", ()) or ())
         reads_mask = proxy is not None and proxy.shape[0] - NUM_KEYPOINTS == 2
-        self.shape_text.content = shape_basis_text(mask is not None, reads_mask, terms)
+        text = shape_basis_text(mask is not None, reads_mask, terms)
         self.person_mask.visible = mask is not None and known is not None
         if mask is not None and known is not None:
+            mask, known = np.asarray(mask, np.float32), np.asarray(known, bool)
             edges = (
                 None if proxy is None else np.clip(proxy[0].detach().float().cpu().numpy(), 0, 1)
             )
             if edges is not None and edges.shape != mask.shape:
                 edges = None
-            self.person_mask.image = person_mask_image(mask, known, edges)
+            mode = None if overlay_rgba is None else mode_in_crop(overlay_rgba, mask.shape[0])
+            self.person_mask.image = person_mask_image(mask, known, edges, mode)
+            if mode is not None:
+                text += (
+                    f" The most likely body's outline (red, in the *Person mask* image) covers "
+                    f"the mask at IoU {mask_iou(mode, mask, known):.2f}."
+                )
+        self.shape_text.content = text
 
 
 def build_teaching_section(gui: viser.GuiApi, actions: StateActions) -> TeachingSection:
