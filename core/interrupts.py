@@ -64,8 +64,20 @@ def raise_if_interrupted() -> None:
         raise KeyboardInterrupt
 
 
+IMPORT_MACHINERY = "<frozen importlib"
+"""The file name of Python's own import machinery's frames (``<frozen importlib._bootstrap>``)."""
+
+
 def _remember_and_raise(signum: int, frame: FrameType | None) -> None:
+    """The SIGINT handler of :func:`run_command`: remember the Ctrl-C, and raise it unless it
+    landed in the import machinery's own code. There it is only remembered, and
+    :func:`raise_if_interrupted` raises it once the import is done: a KeyboardInterrupt raised
+    in a module lock's weakref callback is printed as "Exception ignored in ..." with a
+    traceback and dropped, and one raised half-way through the machinery can leave a module
+    half-registered."""
     _received.set()
+    if frame is not None and frame.f_code.co_filename.startswith(IMPORT_MACHINERY):
+        return
     raise KeyboardInterrupt
 
 

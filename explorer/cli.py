@@ -38,7 +38,7 @@ import numpy as np
 
 from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.explorer.state import MAX_DISPLAYED_SAMPLES, MAX_SAMPLES
-from hkpd.interrupts import interrupted
+from hkpd.interrupts import interrupted, raise_if_interrupted
 
 if TYPE_CHECKING:
     from hkpd.explorer.app import ExplorerApp
@@ -267,6 +267,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         image = _load_photo(args.image, args.demo)
         provider, app_class = _load_provider_and_app(args)
+        raise_if_interrupted()  # one noted inside the import machinery (hkpd.interrupts)
     except KeyboardInterrupt:
         return interrupted("hkpd-explore")
     # From here Ctrl-C and SIGTERM only set a flag, so a signal that lands anywhere (while the
