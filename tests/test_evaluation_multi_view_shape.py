@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 import torch
+from test_evaluation_shape import _ShapePull  # a toy term: coefficient 1 is 3 ± 0.05
 
 from hkpd.evaluation.cli import main as eval_main
 from hkpd.evaluation.multi_view_shape import (
@@ -82,19 +83,6 @@ def test_eval_flag_prints_the_multi_view_table(tmp_path, capsys) -> None:
     assert rows[-5:] == ["1 photo", "2 photos", "3 photos", "4 photos", "5 photos"]
     assert eval_main([str(checkpoint), "--multi-view-shape", "-1"]) == 2
     assert "--multi-view-shape must be >= 0" in capsys.readouterr().err
-
-
-class _ShapePull:
-    """A toy evidence term: "shape coefficient 1 is 3 ± 0.05" (an over-sure silhouette)."""
-
-    name = "shape_pull"
-    residual_shape = (1, 1)
-    robust_scale = None
-    needs_vertices = False
-    surface_vertices = None
-
-    def residuals(self, posed):
-        return ((posed.betas[..., 1] - 3.0) / 0.05)[..., None, None]
 
 
 def test_evidence_views_are_the_network_views_and_their_terms_reach_each_fit() -> None:
