@@ -84,6 +84,9 @@ class PhotoSection:
     occluders: OccluderList
     _offering: bool = field(default=False, repr=False)
     """True while :meth:`show_people` sets the menu (that is not the user's choice)."""
+    _offered: str = field(default=NO_PERSON_CHOICE, repr=False)
+    """The entry :meth:`show_people` last set: what the menu goes back to when a value arrives
+    that the menu does not offer (a browser's late echo of an older menu)."""
 
     def show_people(self, count: int, choice: int | None = 0) -> None:
         """Offer a choice of person when the photo shows several (hidden otherwise).
@@ -98,15 +101,29 @@ class PhotoSection:
         if choice is None:
             choices += (PICKED_CHOICE,)
             value = PICKED_CHOICE
-        else:
-            value = choices[choice] if count >= 2 and 0 <= choice < count else NO_PERSON_CHOICE
+        elif count >= 2 and 0 <= choice < count:
+            value = choices[choice]
+        else:  # one person or none, shown as found: the (hidden) menu offers just that
+            choices, value = (NO_PERSON_CHOICE,), NO_PERSON_CHOICE
+        self._offer(choices, value)
+        self.people.visible = count >= 2 or (choice is None and count >= 1)
+
+    def _offer(self, choices: tuple[str, ...], value: str) -> None:
+        """Set the menu's entries and its value (always one of them), as the app's doing."""
         self._offering = True
         try:
-            self.people.options = choices or (NO_PERSON_CHOICE,)
-            self.people.value = value
-            self.people.visible = count >= 2 or (choice is None and count >= 1)
+            self.people.options = choices
+            self.people.value = self._offered = value
         finally:
             self._offering = False
+
+    def restore_if_not_offered(self) -> bool:
+        """Put the menu back to what :meth:`show_people` last set when its value is not one
+        of its entries (a late echo from a browser of an older menu); True when it did."""
+        if self._offering or self.people.value in self.people.options:
+            return False
+        self._offer(tuple(self.people.options), self._offered)
+        return True
 
     def chosen_person(self) -> int | None:
         """The 0-based person the user chose in the menu, or None (no choice, or the app set
@@ -178,6 +195,8 @@ def build_photo_section(gui: viser.GuiApi, actions: PhotoActions) -> PhotoSectio
 
 
 def _select_chosen_person(section: PhotoSection, actions: PhotoActions) -> None:
+    if section.restore_if_not_offered():
+        return
     index = section.chosen_person()
     if index is not None:
         actions.select_person(index)
