@@ -4,7 +4,8 @@ The app only calls ``provider.predict(image, occluders, evidence=..., bbox=...)`
 posterior and (when there is one) the proxy representation from the result, so anything with
 that method can drive it: the library's :class:`hkpd.prediction.Predictor`, or a test double in
 the test suite. A provider that also has ``find_people`` (:class:`PeopleFinder`) lets the user
-choose among several people in a photo.
+choose among several people in a photo; one with ``fits_person_mask`` (:class:`MaskFittingProvider`)
+also takes ``silhouette=True`` and gets the *Fit the person mask* switch.
 """
 
 from __future__ import annotations

@@ -154,7 +154,7 @@ def build_photo_section(gui: viser.GuiApi, actions: PhotoActions) -> PhotoSectio
             disabled=not actions.state.evidence,
             hint="Also fit the body's outline to BlazePose's person mask (the Teaching tab "
             "shows the mask). Best for one person in close-fitting clothes; loose clothes, hair "
-            "or a second person in the mask make the body wider. About 0.2 s more per update.",
+            "or a second person in the mask make the body wider. About 0.3 s more per update.",
         )
         pick = gui.add_button(
             "Pick the person",
