@@ -47,7 +47,8 @@ def condition_batch(
         body64: float64 body model.
         config: the evidence settings.
         extra_terms: per example, the evidence beyond its keypoints (e.g. a silhouette term),
-            weighed in the same fit; None: keypoints only.
+            weighed in the same fit with :meth:`EvidenceConfig.for_mask_evidence`'s settings,
+            as the predictor weighs a mask; None: keypoints only.
 
     Returns:
         The conditioned output (same dtype and device as ``output``) and ``(B,)`` bool, which
@@ -59,7 +60,8 @@ def condition_batch(
         start = output.rows(slice(item, item + 1)).detach().to("cpu")
         evidence = KeypointEvidence(detected[item].cpu(), reported[item].cpu(), crop_size)
         extra = () if extra_terms is None else extra_terms[item]
-        fit = condition_on_keypoints(body64, start, evidence, config, extra_terms=extra)
+        settings = config.for_mask_evidence() if extra else config  # as the predictor's fit
+        fit = condition_on_keypoints(body64, start, evidence, settings, extra_terms=extra)
         if fit.conditioned is None:
             continue
         succeeded[item] = True

@@ -16,28 +16,21 @@ like the network's.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 
 import torch
 
-from hkpd.body import BodyModel
 from hkpd.conditioning import EvidenceConfig
-from hkpd.distributions import BodyDistribution
-from hkpd.evaluation.evidence_synthetic import condition_batch
-from hkpd.evaluation.multi_view_shape import MULTI_VIEW_SEED, MultiViewPredictions
+from hkpd.evaluation.multi_view_shape import MULTI_VIEW_SEED, MultiViewPredictions, body_shapes
 from hkpd.evaluation.shape_eval import (
-    MASK_SEED_OFFSET,
+    NETWORK_POSTERIOR,
+    DetectorLikeInputs,
     ExtraTermsFor,
-    fit_config,
-    masked_examples,
+    read_posteriors,
 )
 from hkpd.prediction.predictor import float64_body
-from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
-from hkpd.synthesis.generator import RenderedBatch, SyntheticDataGenerator, batch_seed
+from hkpd.synthesis.detector_noise import DetectorNoise
+from hkpd.synthesis.generator import SyntheticDataGenerator, batch_seed
 from hkpd.synthesis.mask_noise import MaskNoise
-
-NETWORK_POSTERIOR = "network"
-"""The name of the network's own posterior in :func:`predict_multi_view_evidence_shapes`."""
 
 
 @torch.no_grad()
@@ -85,11 +78,9 @@ def predict_multi_view_evidence_shapes(
     if len(set(names)) != len(names):
         raise ValueError(f"posterior names must differ from each other and from "
                          f"{NETWORK_POSTERIOR!r}, got {list(posteriors)}")  # fmt: skip
-    keypoint_noise, mask_noise = keypoint_noise or DetectorNoise(), mask_noise or MaskNoise()
+    inputs = DetectorLikeInputs.seeded(seed, keypoint_noise, mask_noise)
     body64 = float64_body(generator.body)
-    true_betas = _body_shapes(generator, bodies, seed)
-    keypoint_generator = torch.Generator().manual_seed(seed)
-    mask_generator = torch.Generator().manual_seed(seed + MASK_SEED_OFFSET)
+    true_betas = body_shapes(generator, bodies, seed)
     chunks = (bodies + batch_size - 1) // batch_size
     means: dict[str, list[list[torch.Tensor]]] = {name: [] for name in names}
     stds: dict[str, list[list[torch.Tensor]]] = {name: [] for name in names}
@@ -102,10 +93,7 @@ def predict_multi_view_evidence_shapes(
             rendered = generator.generate(
                 betas.shape[0], batch_seed(seed, view * chunks + chunk), betas
             )
-            readings = _read_batch(
-                reader, rendered, posteriors, config, body64,
-                _DetectorNoises(keypoint_noise, keypoint_generator, mask_noise, mask_generator),
-            )  # fmt: skip
+            readings = read_posteriors(reader, rendered, posteriors, config, body64, inputs)
             for name, reading in readings.items():
                 shape = reading.shape_distribution()
                 means[name][view].append(shape.mean.detach().float().cpu())
@@ -118,46 +106,3 @@ def predict_multi_view_evidence_shapes(
         )
         for name in names
     }
-
-
-@dataclass
-class _DetectorNoises:
-    """The detector-like keypoint and mask noise and their random streams."""
-
-    keypoints: DetectorNoise
-    keypoint_stream: torch.Generator
-    masks: MaskNoise
-    mask_stream: torch.Generator
-
-
-def _read_batch(
-    reader: torch.nn.Module,
-    rendered: RenderedBatch,
-    posteriors: Mapping[str, ExtraTermsFor],
-    config: EvidenceConfig,
-    body64: BodyModel,
-    noises: _DetectorNoises,
-) -> dict[str, BodyDistribution]:
-    """The network's reading of one rendered batch and each evidence posterior of it."""
-    batch = rendered.batch
-    size = batch.proxy.shape[-1]
-    output = reader(batch.proxy)
-    readings = {NETWORK_POSTERIOR: output}
-    detected, reported = detector_like_keypoints(
-        batch.keypoints2d, batch.visible, size, noises.keypoints, noises.keypoint_stream
-    )
-    examples = masked_examples(rendered, noises.masks, noises.mask_stream)
-    for name, terms_for in posteriors.items():
-        terms = [terms_for(example) for example in examples]
-        readings[name], _ = condition_batch(
-            output, detected, reported, size, body64, fit_config(config, terms), terms
-        )
-    return readings
-
-
-def _body_shapes(generator: SyntheticDataGenerator, bodies: int, seed: int) -> torch.Tensor:
-    """``(bodies, K)`` shapes drawn from the generator's prior, as
-    :func:`hkpd.evaluation.multi_view_shape.predict_multi_view_shapes` draws them."""
-    shapes = torch.Generator().manual_seed(seed)
-    body: BodyModel = generator.body
-    return torch.randn(bodies, body.num_betas, generator=shapes) * generator.config.shape_std

@@ -103,9 +103,7 @@ def predict_multi_view_shapes(
     if bodies < 1 or views < 1 or batch_size < 1:
         raise ValueError(f"bodies, views and batch_size must be >= 1, got {bodies}, {views}, "
                          f"{batch_size}")  # fmt: skip
-    shapes = torch.Generator().manual_seed(seed)
-    config = generator.config
-    true_betas = torch.randn(bodies, generator.body.num_betas, generator=shapes) * config.shape_std
+    true_betas = body_shapes(generator, bodies, seed)
     means, stds = [], []
     for view in range(views):
         view_means, view_stds = [], []
@@ -119,6 +117,15 @@ def predict_multi_view_shapes(
         means.append(torch.cat(view_means))
         stds.append(torch.cat(view_stds))
     return MultiViewPredictions(true_betas, torch.stack(means), torch.stack(stds))
+
+
+def body_shapes(generator: SyntheticDataGenerator, bodies: int, seed: int) -> torch.Tensor:
+    """``(bodies, K)`` shape coefficients drawn from the generator's shape prior
+    ``N(0, shape_std²)`` with their own ``seed``: the bodies of the multi-view sets."""
+    shapes = torch.Generator().manual_seed(seed)
+    return (
+        torch.randn(bodies, generator.body.num_betas, generator=shapes) * generator.config.shape_std
+    )
 
 
 @torch.no_grad()

@@ -48,6 +48,9 @@ MASK_SEED_OFFSET = 1
 """The masks' noise is seeded with ``seed + MASK_SEED_OFFSET`` (the keypoints' with ``seed``, as
 in :func:`hkpd.evaluation.evidence_synthetic.evaluate_evidence_batches`)."""
 
+NETWORK_POSTERIOR = "network"
+"""The name of the network's own posterior in :func:`read_posteriors` (and the scores)."""
+
 
 @dataclass(frozen=True)
 class MaskedExample:
@@ -92,13 +95,6 @@ def silhouette_terms_for(body: BodyModel, config: SilhouetteConfig | None = None
     return terms
 
 
-def fit_config(config: EvidenceConfig, terms: Sequence[Sequence[EvidenceTerm]]) -> EvidenceConfig:
-    """The fit's settings for a batch whose examples get ``terms`` beyond the keypoints: the
-    predictor's rule (:meth:`EvidenceConfig.for_mask_evidence` when there are any), so the
-    synthetic rows score the posterior a user gets."""
-    return config.for_mask_evidence() if any(terms) else config
-
-
 def rendered_test_set(
     generator: SyntheticDataGenerator, count: int, seed: int = TEST_SET_SEED
 ) -> Iterator[RenderedBatch]:
@@ -122,6 +118,61 @@ def masked_examples(
         MaskedExample(probability[i], known[i], size, silhouettes[i])
         for i in range(silhouettes.shape[0])
     ]
+
+
+@dataclass
+class DetectorLikeInputs:
+    """How the detector-like keypoints and masks of the examples are drawn, and the random
+    streams they are drawn from (one per kind, so adding a posterior changes no draw)."""
+
+    keypoints: DetectorNoise
+    masks: MaskNoise
+    keypoint_stream: torch.Generator
+    mask_stream: torch.Generator
+
+    @classmethod
+    def seeded(
+        cls,
+        seed: int,
+        keypoint_noise: DetectorNoise | None = None,
+        mask_noise: MaskNoise | None = None,
+    ) -> DetectorLikeInputs:
+        """The noise models (defaults: their dataclasses') with the keypoints' stream seeded
+        by ``seed`` and the masks' by ``seed + MASK_SEED_OFFSET``."""
+        return cls(
+            keypoint_noise or DetectorNoise(),
+            mask_noise or MaskNoise(),
+            torch.Generator().manual_seed(seed),
+            torch.Generator().manual_seed(seed + MASK_SEED_OFFSET),
+        )
+
+
+def read_posteriors(
+    network: torch.nn.Module,
+    rendered: RenderedBatch,
+    posteriors: Mapping[str, ExtraTermsFor],
+    config: EvidenceConfig,
+    body64: BodyModel,
+    inputs: DetectorLikeInputs | None,
+) -> dict[str, BodyDistribution]:
+    """Every posterior of one rendered batch: the network's reading (:data:`NETWORK_POSTERIOR`)
+    and, with ``inputs``, each evidence posterior of ``posteriors``, fitted to the batch's
+    detector-like keypoints and to the terms its ``ExtraTermsFor`` makes of each example's
+    detector-like mask (examples whose fit fails keep the network's reading)."""
+    batch = rendered.batch
+    size = batch.proxy.shape[-1]
+    output = network(batch.proxy)
+    readings = {NETWORK_POSTERIOR: output}
+    if inputs is None:
+        return readings
+    detected, reported = detector_like_keypoints(
+        batch.keypoints2d, batch.visible, size, inputs.keypoints, inputs.keypoint_stream
+    )
+    examples = masked_examples(rendered, inputs.masks, inputs.mask_stream)
+    for name, terms_for in posteriors.items():
+        terms = [terms_for(example) for example in examples]
+        readings[name], _ = condition_batch(output, detected, reported, size, body64, config, terms)
+    return readings
 
 
 @dataclass
@@ -173,29 +224,14 @@ def evaluate_shape_batches(
     """
     posteriors = {"evidence": extra_terms_for, **(more_evidence or {})}
     config = config or EvidenceConfig()
-    keypoint_noise, mask_noise = keypoint_noise or DetectorNoise(), mask_noise or MaskNoise()
     body64 = float64_body(body)
-    keypoint_generator = torch.Generator().manual_seed(seed)
-    mask_generator = torch.Generator().manual_seed(seed + MASK_SEED_OFFSET)
+    inputs = DetectorLikeInputs.seeded(seed, keypoint_noise, mask_noise) if evidence else None
     records = _ShapeRecords({}, {}, [])
     for rendered in batches:
-        batch = rendered.batch
-        size = batch.proxy.shape[-1]
-        output = network(batch.proxy)
-        records.add("network", output)
-        records.truth.append(batch.betas.detach().double().cpu())
-        if not evidence:
-            continue
-        detected, reported = detector_like_keypoints(
-            batch.keypoints2d, batch.visible, size, keypoint_noise, keypoint_generator
-        )
-        examples = masked_examples(rendered, mask_noise, mask_generator)
-        for name, terms_for in posteriors.items():
-            terms = [terms_for(example) for example in examples]
-            conditioned, _ = condition_batch(
-                output, detected, reported, size, body64, fit_config(config, terms), terms
-            )
-            records.add(name, conditioned)
+        readings = read_posteriors(network, rendered, posteriors, config, body64, inputs)
+        for name, reading in readings.items():
+            records.add(name, reading)
+        records.truth.append(rendered.batch.betas.detach().double().cpu())
     truth = torch.cat(records.truth)
     return {
         name: shape_scores(body64, torch.cat(means), torch.cat(records.stds[name]), truth)
