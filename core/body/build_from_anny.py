@@ -48,7 +48,7 @@ from hkpd.body.anny_rig_mapping import (
     group_root_bones,
     location_bones,
 )
-from hkpd.body.asset import BodyAsset, save_body_asset
+from hkpd.body.asset import SEX_NAMES, BodyAsset, save_body_asset
 from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.kinematic_tree import SMPL_JOINT_NAMES, SMPL_PARENTS, compose_global_rotations
 
@@ -114,11 +114,20 @@ def load_anny_rig() -> AnnyRig:
     )
 
 
-def sample_adult_coefficients(rig: AnnyRig, count: int, seed: int) -> torch.Tensor:
+ANNY_GENDER_OF_SEX = {"female": 1.0, "male": 0.0}
+"""Anny's ``gender`` phenotype at each end: 0 is male and 1 female in anny 0.6.2 (its sampler
+gives ``gender <= 0.5`` the boys' WHO height curves; measured: 100 adults at 0 average 1.78 m,
+at 1 1.59 m)."""
+
+
+def sample_adult_coefficients(
+    rig: AnnyRig, count: int, seed: int, gender: float | None = None
+) -> torch.Tensor:
     """Anny blendshape coefficients of ``count`` adults from Anny's shape distribution.
 
     Morphological age is uniform in [18, 90] years; gender is uniform in [0, 1] (both sexes
-    and everything between); the other phenotypes follow Anny's age-conditioned distributions.
+    and everything between), or fixed at ``gender`` when given; the other phenotypes follow
+    Anny's age-conditioned distributions.
 
     Returns:
         ``(count, C)`` float64 blendshape coefficients.
@@ -132,7 +141,13 @@ def sample_adult_coefficients(rig: AnnyRig, count: int, seed: int) -> torch.Tens
         ages = torch.distributions.Uniform(
             torch.tensor(18.0, dtype=torch.float64), torch.tensor(90.0, dtype=torch.float64)
         )
-        distribution = SimpleShapeDistribution(model, morphological_age_distribution=ages)
+        genders = None
+        if gender is not None:  # a point mass at ``gender``, as a distribution Anny can sample
+            value = torch.tensor(float(gender), dtype=torch.float64)
+            genders = torch.distributions.Uniform(value, value + 1e-12)
+        distribution = SimpleShapeDistribution(
+            model, morphological_age_distribution=ages, gender_distribution=genders
+        )
         _, phenotypes = distribution.sample(count)
     finally:
         torch.random.set_rng_state(generator_state)
@@ -531,6 +546,45 @@ def linear_body(
     )
 
 
+@dataclass
+class SexShapePriors:
+    """Gaussians over ``betas`` for each sex, fitted to Anny adults at each end of ``gender``.
+
+    Attributes:
+        means: ``(2, 10)`` (rows: female, male; :data:`hkpd.body.asset.SEX_NAMES`).
+        covariances: ``(2, 10, 10)``.
+        residual_mm: per sex, the mean vertex distance between a body and its projection on
+            the 10 components (what the shape space cannot express of that sex).
+    """
+
+    means: torch.Tensor
+    covariances: torch.Tensor
+    residual_mm: list[float]
+
+
+def sex_shape_priors(
+    rig: AnnyRig, body: LinearBody, bake: torch.Tensor, keep: torch.Tensor, count: int, seed: int
+) -> SexShapePriors:
+    """Fit one Gaussian over ``betas`` per sex: ``count`` adults from Anny's own phenotype
+    distribution with ``gender`` fixed at that sex's end, T-posed, each projected on the shape
+    space by least squares over the kept vertices (the components are orthogonal there)."""
+    directions = body.shapedirs.reshape(-1, NUM_BETAS)  # (V*3, 10)
+    means, covariances, residuals = [], [], []
+    for offset, sex in enumerate(SEX_NAMES):
+        coefficients = sample_adult_coefficients(
+            rig, count, seed + 101 + offset, gender=ANNY_GENDER_OF_SEX[sex]
+        )
+        vertices, _ = tpose_bodies(rig, coefficients, bake)
+        centred = (vertices[:, keep] - body.v_template).reshape(count, -1)
+        betas = torch.linalg.lstsq(directions, centred.T).solution.T  # (count, 10)
+        projected = (betas @ directions.T).reshape(count, -1, 3)
+        residual = (projected - centred.reshape(count, -1, 3)).norm(dim=-1).mean()
+        means.append(betas.mean(0))
+        covariances.append(torch.cov(betas.T))
+        residuals.append(float(residual * 1000))
+    return SexShapePriors(torch.stack(means), torch.stack(covariances), residuals)
+
+
 def reference_bodies(
     rig: AnnyRig, space: ShapeSpace, bake: torch.Tensor, keep: torch.Tensor, seed: int
 ) -> dict[str, np.ndarray]:
@@ -555,7 +609,9 @@ def reference_bodies(
     }
 
 
-def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> dict:
+def build(
+    seed: int = 0, train_count: int = 2000, heldout_count: int = 500, sex_count: int = 2000
+) -> dict:
     """Build the body asset (``docs/body_asset_format.md``) plus a reference for the tests.
 
     Returns:
@@ -575,6 +631,7 @@ def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> d
     regressor, dropped_mass = coco_regressor(rig, keep)
     part_labels = weights.argmax(1).to(torch.uint8)
     reference = reference_bodies(rig, space, bake, keep, seed)
+    sexes = sex_shape_priors(rig, body, bake, keep, sex_count, seed)
 
     report = {
         "anny_version": ANNY_VERSION,
@@ -588,6 +645,11 @@ def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> d
         "dropped": _MOUTH_CAVITY_NOTE,
         "coco_mass_on_dropped_vertices": dropped_mass,
         "max_influences_per_vertex": int((weights > 0).sum(1).max()),
+        "sex_prior_bodies_per_sex": sex_count,
+        "sex_prior_means": {
+            sex: [round(float(v), 4) for v in sexes.means[i]] for i, sex in enumerate(SEX_NAMES)
+        },
+        "sex_prior_residual_mm": dict(zip(SEX_NAMES, sexes.residual_mm, strict=True)),
         "build_seconds": None,
     }
     faces = _faces_on_kept(rig, keep, body.v_template)
@@ -605,6 +667,8 @@ def build(seed: int = 0, train_count: int = 2000, heldout_count: int = 500) -> d
         keypoint_regressor=regressor.float().numpy(),
         part_labels=part_labels.numpy(),
         part_names=SMPL_JOINT_NAMES,
+        sex_shape_means=sexes.means.float().numpy(),
+        sex_shape_covariances=sexes.covariances.float().numpy(),
         metadata=json.dumps(_metadata(report), indent=1),
         source="hkpd.body.build_from_anny",
     )
@@ -619,6 +683,8 @@ def _metadata(report: dict) -> dict:
         "axes": "metres, Y up, facing +Z (SMPL convention)",
         "shape_space": "PCA of T-posed adult bodies (morphological age 18-90, both sexes) "
         "sampled from anny.shape_distribution; betas ~ N(0, I) spans the sample",
+        "sex_shape_priors": "per sex, a Gaussian over betas fitted to adults sampled from "
+        "anny.shape_distribution with gender fixed at that sex's end (anny: 0 male, 1 female)",
         "part_names": "parts are the SMPL joint groups (dominant skinning weight)",
         **report,
     }
@@ -651,10 +717,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--train-bodies", type=int, default=2000)
     parser.add_argument("--heldout-bodies", type=int, default=500)
+    parser.add_argument("--sex-prior-bodies", type=int, default=2000)
     args = parser.parse_args(argv)
 
     torch.set_default_dtype(torch.float64)
-    result = build(args.seed, args.train_bodies, args.heldout_bodies)
+    result = build(args.seed, args.train_bodies, args.heldout_bodies, args.sex_prior_bodies)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     save_body_asset(result["asset"], args.out)
     (args.out.parent / "NOTICE.md").write_text(NOTICE.format(version=ANNY_VERSION, seed=args.seed))
