@@ -23,11 +23,17 @@ from hkpd.conditioning.keypoint_fit import (
 )
 from hkpd.conditioning.keypoint_term import KeypointTerm
 from hkpd.conditioning.laplace import marginal_precisions, matrix_fisher_from_precision
+from hkpd.conditioning.shape_prior import (
+    ShapeGaussian,
+    conditioned_on_measurements,
+    rebased_on_population,
+)
 from hkpd.conditioning.silhouette_term import (
     SilhouetteConfig,
     SilhouetteEvidence,
     SilhouetteTerm,
 )
+from hkpd.conditioning.stated_body import StatedBody
 from hkpd.conditioning.surface_points import SurfaceSamples
 
 __all__ = [
@@ -37,14 +43,18 @@ __all__ = [
     "KeypointFit",
     "KeypointTerm",
     "PosedBodies",
+    "ShapeGaussian",
     "SilhouetteConfig",
     "SilhouetteEvidence",
     "SilhouetteTerm",
+    "StatedBody",
     "SurfaceSamples",
     "condition_on_keypoints",
+    "conditioned_on_measurements",
     "faces_camera",
     "fit_evidence",
     "half_turned",
     "marginal_precisions",
     "matrix_fisher_from_precision",
+    "rebased_on_population",
 ]

@@ -38,6 +38,7 @@ from hkpd.conditioning.evidence_term import EvidenceTerm
 from hkpd.conditioning.fit_objective import FitObjective
 from hkpd.conditioning.fit_state import NUM_PARAMETERS
 from hkpd.conditioning.levenberg_marquardt import robust_cost
+from hkpd.conditioning.shape_prior import ShapeGaussian
 from hkpd.distributions import BodyDistribution
 
 HALF_TURN_ABOUT_UP = torch.tensor([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])
@@ -62,11 +63,14 @@ class FacingStarts:
         turned_from: ``T`` entries: the given start each half-turned copy was made from.
         turned_initial_costs: ``(B,)`` every half-turned copy's cost before the fit (None with
             ``EvidenceConfig.facings`` 1).
+        shape_prior: the full-covariance shape prior of each row of ``starts`` (a turned copy
+            has its origin's), or None when the fit uses the network's.
     """
 
     starts: BodyDistribution
     turned_from: tuple[int, ...]
     turned_initial_costs: torch.Tensor | None
+    shape_prior: ShapeGaussian | None = None
 
     def origin(self, row: int) -> tuple[int, bool]:
         """The given start that fitted start ``row`` came from, and whether it is turned."""
@@ -79,9 +83,10 @@ def initial_costs(
     starts: BodyDistribution,
     terms: Sequence[EvidenceTerm],
     config: EvidenceConfig,
+    shape_prior: ShapeGaussian | None = None,
 ) -> torch.Tensor:
     """``(B,)`` the fit's cost of each start at its own prior's mode (float64 ``starts``)."""
-    objective = FitObjective(body, starts, terms, config)
+    objective = FitObjective(body, starts, terms, config, shape_prior)
     state = objective.start()
     still = torch.zeros(1, *state.betas.shape[:-1], NUM_PARAMETERS, dtype=state.betas.dtype)
     return robust_cost(objective(state.retract(still)), objective.robust_scales())[0]
@@ -92,18 +97,24 @@ def facing_starts(
     starts: BodyDistribution,
     terms: Sequence[EvidenceTerm],
     config: EvidenceConfig,
+    shape_prior: ShapeGaussian | None = None,
 ) -> FacingStarts:
     """The ``B`` starts as given and, with ``config.facings`` 2, the half-turned copies whose
-    cost before the fit is below that of every start as given (the module docstring)."""
+    cost before the fit is below that of every start as given (the module docstring);
+    ``shape_prior`` (B rows) follows the starts."""
     if config.facings == 1:
-        return FacingStarts(starts, (), None)
+        return FacingStarts(starts, (), None, shape_prior)
     turned = half_turned(starts)
-    costs = initial_costs(body, concatenated(starts, turned), terms, config)
+    both_priors = None if shape_prior is None else shape_prior.concatenated(shape_prior)
+    costs = initial_costs(body, concatenated(starts, turned), terms, config, both_priors)
     given = starts.camera.shape[0]
     turned_costs = costs[given:]
     chosen = (turned_costs < costs[:given].min()).nonzero().flatten()
     fitted = concatenated(starts, turned.rows(chosen))
-    return FacingStarts(fitted, tuple(int(i) for i in chosen), turned_costs)
+    fitted_priors = (
+        None if shape_prior is None else shape_prior.concatenated(shape_prior.rows(chosen))
+    )
+    return FacingStarts(fitted, tuple(int(i) for i in chosen), turned_costs, fitted_priors)
 
 
 def concatenated(first: BodyDistribution, second: BodyDistribution) -> BodyDistribution:

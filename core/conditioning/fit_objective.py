@@ -21,6 +21,7 @@ from hkpd.conditioning.config import EvidenceConfig
 from hkpd.conditioning.evidence_term import EvidenceTerm, PosedBodies
 from hkpd.conditioning.fit_priors import FitPriors
 from hkpd.conditioning.fit_state import NUM_BODY_JOINTS, FitState
+from hkpd.conditioning.shape_prior import ShapeGaussian
 from hkpd.conditioning.surface_points import vertex_subset_model
 from hkpd.distributions import BodyDistribution
 
@@ -60,6 +61,8 @@ class FitObjective:
         priors: the B network predictions; each start is regularised by its own.
         terms: the evidence terms (at least one; unique names).
         config: the prior weight and the weak priors' widths.
+        shape_prior: B full-covariance shape priors instead of the network's (see
+            :class:`~hkpd.conditioning.fit_priors.FitPriors`).
     """
 
     def __init__(
@@ -68,6 +71,7 @@ class FitObjective:
         priors: BodyDistribution,
         terms: Sequence[EvidenceTerm],
         config: EvidenceConfig,
+        shape_prior: ShapeGaussian | None = None,
     ) -> None:
         if body.dtype != torch.float64:
             raise ValueError("the fit needs a float64 body model (body.double() makes one)")
@@ -76,7 +80,7 @@ class FitObjective:
             raise ValueError(f"the fit needs one or more evidence terms with unique names: {names}")
         self.body = body
         self.terms = tuple(terms)
-        self.prior = FitPriors(priors.to(torch.float64), config)
+        self.prior = FitPriors(priors.to(torch.float64), config, shape_prior)
         self.needs_vertices = any(term.needs_vertices for term in self.terms)
         self.surface_models = {
             term.name: vertex_subset_model(body, term.surface_vertices)

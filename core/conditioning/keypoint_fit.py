@@ -46,6 +46,7 @@ from hkpd.conditioning.keypoint_evidence import KeypointEvidence
 from hkpd.conditioning.keypoint_term import KeypointTerm
 from hkpd.conditioning.laplace import marginal_precisions, matrix_fisher_from_precision
 from hkpd.conditioning.levenberg_marquardt import SolverResult, levenberg_marquardt
+from hkpd.conditioning.shape_prior import ShapeGaussian
 from hkpd.distributions import BodyDistribution
 
 
@@ -76,6 +77,13 @@ class KeypointFit:
         seconds: wall time of the fit.
         terms: names of the evidence terms the fit weighed (``("keypoints",)`` without extra
             terms; empty when it did not run).
+        shape_covariance: ``(K, K)`` the posterior's full shape covariance (``shape_std`` is
+            the root of its diagonal); None when the fit did not run.
+        log_evidence: the winner's Laplace estimate of ``log p(evidence)`` under a given
+            full-covariance shape prior (:class:`~hkpd.conditioning.shape_prior.ShapeGaussian`,
+            its ``log_weight`` included), up to a constant shared by fits with the same terms
+            and network reading: ``log_weight - cost + ½ log det P_shape - ½ log det H``. NaN
+            without such a prior or when the fit did not run.
     """
 
     conditioned: BodyDistribution | None
@@ -92,6 +100,8 @@ class KeypointFit:
     keypoint_weights: torch.Tensor | None = None
     seconds: float = 0.0
     terms: tuple[str, ...] = ()
+    shape_covariance: torch.Tensor | None = None
+    log_evidence: float = math.nan
 
     @property
     def succeeded(self) -> bool:
@@ -110,6 +120,7 @@ def fit_evidence(
     starts: BodyDistribution,
     terms: Sequence[EvidenceTerm],
     config: EvidenceConfig,
+    shape_prior: ShapeGaussian | None = None,
 ) -> SolverResult:
     """Run the fit from every start (see :func:`condition_on_keypoints`).
 
@@ -118,8 +129,9 @@ def fit_evidence(
         starts: B network predictions; each start is regularised by its own prior.
         terms: the evidence terms (e.g. ``[KeypointTerm(evidence, config)]``).
         config: the evidence settings.
+        shape_prior: B full-covariance shape priors instead of the network's.
     """
-    objective = FitObjective(body, starts, terms, config)
+    objective = FitObjective(body, starts, terms, config, shape_prior)
     return levenberg_marquardt(
         objective,
         objective.start(),
@@ -133,8 +145,9 @@ def laplace_posterior(
     start: int,
     spread: str = "conditional",
     rigid_spread: str = "conditional",
-) -> BodyDistribution:
-    """The family posterior of one start from the fit's Hessian (see the module docstring).
+) -> tuple[BodyDistribution, torch.Tensor]:
+    """The family posterior of one start from the fit's Hessian (see the module docstring),
+    and its full ``(K, K)`` shape covariance.
 
     Args:
         result: the fit.
@@ -159,13 +172,34 @@ def laplace_posterior(
     body_pose = state.body_pose()[start]
     F = matrix_fisher_from_precision(body_pose, joint_precision)
     shape_covariance = torch.linalg.inv(free_rigid)[POSE.stop :, POSE.stop :]
-    return BodyDistribution(
+    shape_covariance = 0.5 * (shape_covariance + shape_covariance.T)
+    distribution = BodyDistribution(
         F=F,
         shape_mean=state.betas[start],
         shape_std=shape_covariance.diagonal().clamp_min(0.0).sqrt(),
         global_orient=state.global_orient()[start],
         camera=state.camera()[start],
     )
+    return distribution, shape_covariance
+
+
+def _log_evidence(result: SolverResult, row: int, shape_prior: ShapeGaussian | None) -> float:
+    """Start ``row``'s Laplace log evidence under its full-covariance shape prior (NaN
+    without one): ``log_weight - cost + ½ log det P_shape - ½ log det H``, every other
+    normaliser being shared by fits that differ only in the shape prior."""
+    if shape_prior is None or not bool(torch.isfinite(result.cost[row])):
+        return math.nan
+    sign, log_det_hessian = torch.linalg.slogdet(result.hessian[row])
+    if sign <= 0:
+        return math.nan
+    prior = shape_prior.rows(row)
+    value = (
+        prior.log_weight[0]
+        - result.cost[row]
+        + 0.5 * prior.log_det_precision()[0].to(result.cost)
+        - 0.5 * log_det_hessian
+    )
+    return float(value)
 
 
 def pose_shape_precision(hessian: torch.Tensor, rigid_spread: str) -> torch.Tensor:
@@ -192,6 +226,7 @@ def condition_on_keypoints(
     evidence: KeypointEvidence,
     config: EvidenceConfig | None = None,
     extra_terms: Sequence[EvidenceTerm] = (),
+    shape_prior: ShapeGaussian | None = None,
 ) -> KeypointFit:
     """Fit the body to the evidence from every start and return the conditioned posterior.
 
@@ -204,6 +239,9 @@ def condition_on_keypoints(
         config: the evidence settings (defaults: :class:`EvidenceConfig`).
         extra_terms: evidence beyond the keypoints (:class:`EvidenceTerm`), weighed in the same
             fit and the same Laplace step; its names must differ from ``"keypoints"``.
+        shape_prior: B full-covariance shape priors replacing the network's (one sex's
+            population and stated measurements: :mod:`hkpd.conditioning.shape_prior`); the
+            fit's ``log_evidence`` then compares such priors.
 
     Returns:
         A :class:`KeypointFit`; ``conditioned`` is None (with ``reason``) when there were fewer
@@ -227,15 +265,16 @@ def condition_on_keypoints(
         return KeypointFit(None, "the network's prediction is not finite", count)
     with torch.no_grad():
         terms = (KeypointTerm(evidence, config), *extra_terms)
-        chosen = facing_starts(body, starts64, terms, config)
-        result = fit_evidence(body, chosen.starts, terms, config)
+        chosen = facing_starts(body, starts64, terms, config, shape_prior)
+        result = fit_evidence(body, chosen.starts, terms, config, chosen.shape_prior)
         costs = torch.where(torch.isfinite(result.cost), result.cost, torch.inf)
         best = int(costs.argmin())  # the first of equal costs: the start as given
-        conditioned = (
+        conditioned, shape_covariance = (
             laplace_posterior(result, best, config.joint_spread, config.rigid_spread)
             if torch.isfinite(costs[best])
-            else None
+            else (None, None)
         )
+        log_evidence = _log_evidence(result, best, chosen.shape_prior)
     common = {
         "evidence_count": count,
         "start": chosen.origin(best)[0],
@@ -250,6 +289,8 @@ def condition_on_keypoints(
         * evidence.observed.to(torch.float64),
         "terms": tuple(term.name for term in terms),
         "seconds": time.perf_counter() - began,
+        "shape_covariance": shape_covariance,
+        "log_evidence": log_evidence,
     }
     if conditioned is None or not conditioned.is_finite():
         return KeypointFit(None, "the fit produced non-finite numbers", **common)

@@ -27,8 +27,9 @@ from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
 from hkpd.uncertainty import vertex_uncertainty
 
 if TYPE_CHECKING:
-    from hkpd.conditioning import KeypointFit
+    from hkpd.conditioning import KeypointFit, StatedBody
     from hkpd.prediction.network_input import NetworkInput
+    from hkpd.prediction.sex_latent import SexShapes
 
 PosteriorSource = Literal["network", "evidence"]
 """Where a posterior's distribution comes from: the network alone (the paper's method), or the
@@ -117,6 +118,11 @@ class BodyPosterior:
             started from) came from the left-right mirror image of the crop, mapped back,
             because its body fitted the shown keypoints better than the reading of the crop
             itself (:mod:`hkpd.prediction.readings.mirror`).
+        sexes: the shape with sex as a latent (:mod:`hkpd.prediction.sex_latent`): each sex's
+            shape posterior and probability; ``distribution`` is then the more probable sex's
+            and samples come from the mixture. None for the network's own posterior and for
+            body models without sex priors.
+        stated: what the user stated about the person (sex, measurements), or None.
     """
 
     distribution: BodyDistribution
@@ -131,6 +137,40 @@ class BodyPosterior:
     evidence: torch.Tensor | None = None
     upright_tilt_degrees: float | None = None
     mirror_read: bool = False
+    sexes: SexShapes | None = None
+    stated: StatedBody | None = None
+
+    def __repr__(self) -> str:
+        sex = "" if self.sexes is None else f", {self.sex} p={self.sex_probability:.2f}"
+        return f"BodyPosterior(source={self.source!r}{sex}, samples via .sample(n))"
+
+    @property
+    def sex_probabilities(self) -> dict[str, float] | None:
+        """``{"female": p, "male": 1 - p}``: how probable each sex is given the photo and what
+        was stated (1 for a stated sex); None without sexes (see :attr:`sexes`)."""
+        return None if self.sexes is None else dict(self.sexes.probabilities)
+
+    @property
+    def sex(self) -> str | None:
+        """The more probable sex, whose body :meth:`mode` draws (None without sexes)."""
+        return None if self.sexes is None else self.sexes.most_probable
+
+    @property
+    def sex_probability(self) -> float | None:
+        """The probability of :attr:`sex`."""
+        return None if self.sexes is None else self.sexes.probabilities[self.sexes.most_probable]
+
+    def measurements(self) -> dict[str, tuple[float, float]]:
+        """``{name: (mean, std)}``: height, mass, chest, waist and hip girths and shoulder
+        width (metres, kilograms; :mod:`hkpd.body.measurements` says where each is taken) under
+        the shape posterior, over both sexes when sex is a latent (linearised per sex)."""
+        from hkpd.body.measurements import body_measurer
+        from hkpd.prediction.sex_latent import gaussian_measurements
+
+        measurer = body_measurer(self.body)
+        if self.sexes is not None:
+            return self.sexes.measurements(measurer)
+        return gaussian_measurements(measurer, self.shape_mean, self.shape_std)
 
     @property
     def F(self) -> torch.Tensor:
@@ -215,6 +255,9 @@ class BodyPosterior:
             body_pose = self.pose_distribution.sample(n, generator=generator)[:, 0]
             noise = torch.randn(n, self.shape_mean.shape[0], generator=generator,
                                 device=self.F.device, dtype=self.shape_mean.dtype)  # fmt: skip
+            if self.sexes is not None:
+                uniform = torch.rand(n, generator=generator, device=self.F.device)
+                return self.sexes.sample_betas(noise, uniform), body_pose
         return self.shape_mean + noise * self.shape_std, body_pose
 
     def sample(self, n: int, seed: int | None = None) -> BodyMeshes:
@@ -307,7 +350,10 @@ class BodyPosterior:
         largest = float(self.shape_std.abs().max())
         factor = _scale_factor("shape std factor", factor, largest, MAX_SHAPE_STD, "shape std")
         shape_std = self.shape_std * factor
-        edited = replace(self, distribution=replace(self.distribution, shape_std=shape_std))
+        sexes = None if self.sexes is None else self.sexes.scaled(factor)
+        edited = replace(
+            self, distribution=replace(self.distribution, shape_std=shape_std), sexes=sexes
+        )
         edited.__dict__["pose_distribution"] = self.pose_distribution  # pose unchanged
         return edited
 

@@ -21,7 +21,7 @@ import copy
 import math
 import os
 import threading
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -37,9 +37,11 @@ from hkpd.conditioning import (
     KeypointEvidence,
     SilhouetteEvidence,
     SilhouetteTerm,
+    StatedBody,
     SurfaceSamples,
     condition_on_keypoints,
 )
+from hkpd.conditioning.stated_body import StatedValue
 from hkpd.devices import resolve_device
 from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
@@ -54,6 +56,7 @@ from hkpd.prediction.occluders import OccluderBoxes, Occluders
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
 from hkpd.prediction.readings.upright_view import UprightView
+from hkpd.prediction.sex_fits import fit_each_sex, with_sex_shape
 from hkpd.proxy import build_proxy
 
 SHIPPED_MODEL = ("models", "hkpd_hierarchical.pt")
@@ -163,6 +166,8 @@ class Predictor:
         evidence: bool = True,
         upright: bool = True,
         silhouette: np.ndarray | None = None,
+        sex: str | None = None,
+        measurements: Mapping[str, StatedValue] | None = None,
     ) -> BodyPosterior:
         """The body posterior of the person in ``image``.
 
@@ -188,12 +193,24 @@ class Predictor:
             silhouette: ``(H, W)`` bool mask of the person, original-photo pixels: only for
                 networks that read a silhouette instead of edges (the proxy ablation's
                 ``network.config.image_proxy == "silhouette"``), which need one.
+            sex: "female" or "male" when known; None (the default) lets the photo decide:
+                the shape is fitted under each sex's population prior and
+                ``posterior.sex_probabilities`` says how probable each is
+                (:mod:`hkpd.prediction.sex_latent`).
+            measurements: what is known of the body, ``{name: value}`` or
+                ``{name: (value, std)}`` with names ``"height_m"``, ``"mass_kg"``,
+                ``"chest_m"``, ``"waist_m"``, ``"hip_m"``, ``"shoulder_width_m"`` (metres,
+                kilograms; default stds :data:`hkpd.conditioning.stated_body.DEFAULT_STATED_STD`):
+                evidence on the shape, weighed before the fit.
 
         Raises:
             ImageInputError: the image is missing, unreadable or unusable.
             NoPersonFoundError: nobody was found.
-            ValueError: a silhouette network without a silhouette of the photo's size.
+            ValueError: a silhouette network without a silhouette of the photo's size; a sex or
+                measurement that is unknown or implausible, or stated with ``evidence=False``
+                or a body model without sex priors.
         """
+        stated = self._stated(sex, measurements, evidence)
         with self._lock:
             prepared = prepare_network_input(
                 image,
@@ -218,15 +235,21 @@ class Predictor:
                 self.crop_size,
             )
             mask_terms = self._mask_terms(prepared)
-            fit = condition_on_keypoints(
-                self._float64_body(),
-                starts,
-                keypoint_evidence,
-                self.evidence_config.for_mask_evidence() if mask_terms else self.evidence_config,
-                extra_terms=mask_terms,
-            )
+            config = self.evidence_config
+            config = config.for_mask_evidence() if mask_terms else config
+            if not self.body.has_sex_priors:
+                fit = condition_on_keypoints(
+                    self._float64_body(), starts, keypoint_evidence, config, mask_terms
+                )
+                sexes = None
+            else:
+                fits = fit_each_sex(
+                    self._float64_body(), starts, keypoint_evidence, config, mask_terms, stated
+                )
+                fit, sexes = fits.winner, fits.shapes
         if fit.conditioned is None:
-            return replace(network_posterior, evidence_fit=fit)
+            fallback = replace(network_posterior, evidence_fit=fit, stated=stated)
+            return fallback if sexes is None else with_sex_shape(fallback, sexes)
         prior = self._posterior(starts, fit.start, prepared, readings)
         return replace(
             prior,
@@ -234,7 +257,31 @@ class Predictor:
             source="evidence",
             prior=prior,
             evidence_fit=fit,
+            sexes=sexes,
+            stated=stated,
         )
+
+    def _stated(
+        self,
+        sex: str | None,
+        measurements: Mapping[str, StatedValue] | None,
+        evidence: bool,
+    ) -> StatedBody:
+        """The checked sex and measurements (before any heavy work), or a ValueError."""
+        stated = StatedBody.of(sex, measurements)
+        if stated.empty:
+            return stated
+        if not evidence:
+            raise ValueError(
+                "a stated sex or measurement conditions the shape, which needs the evidence "
+                "posterior; drop evidence=False (--no-evidence)"
+            )
+        if not self.body.has_sex_priors:
+            raise ValueError(
+                "this body model has no sex-specific shape priors, so a stated sex or "
+                "measurement cannot be used; use the shipped body model"
+            )
+        return stated
 
     def _reading_input(self, prepared: NetworkInput) -> ReadingInput:
         """The reading stage's input for one photo: its proxy; the shown keypoints are the

@@ -1,0 +1,119 @@
+"""``StatedBody``: what the user knows about the person (sex, measurements), checked once.
+
+A stated sex skips the comparison of the sexes; a stated measurement is evidence on the shape
+(:func:`hkpd.conditioning.shape_prior.conditioned_on_measurements`). Values are metres and
+kilograms; each comes with a standard deviation, by default :data:`DEFAULT_STATED_STD`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from numbers import Real
+
+from hkpd.body.asset import SEX_NAMES
+from hkpd.body.measurements import MEASUREMENT_NAMES
+
+DEFAULT_STATED_STD: dict[str, float] = {
+    "height_m": 0.01,
+    "mass_kg": 1.0,
+    "chest_m": 0.02,
+    "waist_m": 0.02,
+    "hip_m": 0.02,
+    "shoulder_width_m": 0.01,
+}
+"""How sure a stated value is when no std is given: a tape or a scale read by a person."""
+
+PLAUSIBLE_RANGE: dict[str, tuple[float, float]] = {
+    "height_m": (0.5, 2.6),
+    "mass_kg": (10.0, 400.0),
+    "chest_m": (0.3, 2.5),
+    "waist_m": (0.3, 2.5),
+    "hip_m": (0.3, 2.5),
+    "shoulder_width_m": (0.1, 0.8),
+}
+"""Values outside these are refused as typing mistakes (e.g. centimetres given as metres)."""
+
+StatedValue = float | tuple[float, float]
+
+
+@dataclass(frozen=True)
+class StatedBody:
+    """The sex and measurements a user states, validated.
+
+    Attributes:
+        sex: "female", "male" or None (let the photo decide).
+        measurements: ``{name: (value, std)}`` with names from
+            :data:`hkpd.body.measurements.MEASUREMENT_NAMES`.
+    """
+
+    sex: str | None = None
+    measurements: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    @classmethod
+    def of(
+        cls, sex: str | None = None, measurements: Mapping[str, StatedValue] | None = None
+    ) -> StatedBody:
+        """Check and normalise user input.
+
+        Args:
+            sex: "female", "male" or None.
+            measurements: ``{name: value}`` or ``{name: (value, std)}``.
+
+        Raises:
+            ValueError: an unknown sex or measurement name, or a value or std that is not a
+                finite positive number in a plausible range (the message says which).
+        """
+        if sex is not None and sex not in SEX_NAMES:
+            raise ValueError(f"sex must be one of {', '.join(SEX_NAMES)} or None, got {sex!r}")
+        checked = {}
+        for name, stated in (measurements or {}).items():
+            checked[name] = _checked_measurement(name, stated)
+        return cls(sex, checked)
+
+    @property
+    def empty(self) -> bool:
+        """Nothing is stated."""
+        return self.sex is None and not self.measurements
+
+    def summary(self) -> str:
+        """One line, e.g. ``"male, height 1.85 ± 0.01 m"`` (``"nothing"`` when empty)."""
+        parts = [] if self.sex is None else [self.sex]
+        for name, (value, std) in self.measurements.items():
+            label, unit = name.rsplit("_", 1)
+            parts.append(f"{label.replace('_', ' ')} {value:g} ± {std:g} {unit}")
+        return ", ".join(parts) or "nothing"
+
+
+def _checked_measurement(name: object, stated: object) -> tuple[float, float]:
+    if name not in MEASUREMENT_NAMES:
+        raise ValueError(
+            f"unknown measurement {name!r}; the measurements are {', '.join(MEASUREMENT_NAMES)}"
+        )
+    if isinstance(stated, tuple | list):
+        if len(stated) != 2:
+            raise ValueError(f"{name}: give a value or a (value, std) pair, got {stated!r}")
+        value, std = stated
+    else:
+        value, std = stated, DEFAULT_STATED_STD[str(name)]
+    value, std = _number(f"{name}", value), _number(f"{name}'s std", std)
+    low, high = PLAUSIBLE_RANGE[str(name)]
+    unit = "kg" if name == "mass_kg" else "m"
+    if not low <= value <= high:
+        raise ValueError(
+            f"{name} = {value:g} {unit} is outside {low:g}-{high:g} {unit}; "
+            f"give it in {'kilograms' if unit == 'kg' else 'metres'}"
+        )
+    if not 0 < std <= high:
+        raise ValueError(f"{name}'s std must be > 0 and at most {high:g} {unit}, got {std:g}")
+    return value, std
+
+
+def _number(what: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, Real):
+        raise ValueError(f"{what} must be a number, got {value!r}")
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError(f"{what} must be finite, got {value!r}")
+    return number

@@ -1,0 +1,126 @@
+"""One keypoint fit per sex, and the posterior's shape with sex as a latent.
+
+:func:`fit_each_sex` re-bases the network's shape reading on each sex's population prior
+(:func:`hkpd.conditioning.rebased_on_population`), conditions it on the stated measurements
+(:func:`hkpd.conditioning.conditioned_on_measurements`), fits the evidence under it, and turns
+the fits' Laplace evidence into the sexes' probabilities (:mod:`hkpd.prediction.sex_latent`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+from hkpd.body import BodyModel
+from hkpd.body.asset import SEX_NAMES
+from hkpd.body.measurements import body_measurer
+from hkpd.conditioning import (
+    EvidenceConfig,
+    EvidenceTerm,
+    KeypointEvidence,
+    KeypointFit,
+    ShapeGaussian,
+    StatedBody,
+    condition_on_keypoints,
+    conditioned_on_measurements,
+    rebased_on_population,
+)
+from hkpd.distributions import BodyDistribution
+from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.sex_latent import SexShapes, sex_probabilities
+
+
+@dataclass(frozen=True)
+class SexFits:
+    """The fits of one photo under each sex's prior.
+
+    Attributes:
+        fits: per fitted sex, its keypoint fit.
+        priors: per fitted sex, the shape prior the fit used (``B`` rows, one per start).
+        shapes: the posterior's shape with sex as a latent.
+    """
+
+    fits: dict[str, KeypointFit]
+    priors: dict[str, ShapeGaussian]
+    shapes: SexShapes
+
+    @property
+    def winner(self) -> KeypointFit:
+        """The more probable sex's fit: the posterior's pose and drawn body."""
+        return self.fits[self.shapes.most_probable]
+
+
+def sex_shape_priors(
+    body: BodyModel,
+    starts: BodyDistribution,
+    config: EvidenceConfig,
+    stated: StatedBody,
+) -> dict[str, ShapeGaussian]:
+    """Per sex to fit (the stated one, or both), the fit's shape prior for the ``B`` starts."""
+    sexes = SEX_NAMES if stated.sex is None else (stated.sex,)
+    priors = {}
+    for sex in sexes:
+        mean, covariance = body.sex_shape_prior(sex)
+        prior = rebased_on_population(
+            starts.shape_mean, starts.shape_std, mean, covariance, config.prior_weight
+        )
+        priors[sex] = conditioned_on_measurements(prior, body_measurer(body), stated.measurements)
+    return priors
+
+
+def fit_each_sex(
+    body64: BodyModel,
+    starts: BodyDistribution,
+    evidence: KeypointEvidence,
+    config: EvidenceConfig,
+    extra_terms: Sequence[EvidenceTerm],
+    stated: StatedBody,
+) -> SexFits:
+    """Fit ``evidence`` from the ``B`` starts under each sex's shape prior.
+
+    Args:
+        body64: float64 body model with sex priors.
+        starts: the network's ``B`` readings (the starts and their pose priors).
+        evidence: the keypoints.
+        config: the evidence settings.
+        extra_terms: further evidence (the person mask).
+        stated: what the user stated (a stated sex is the only one fitted).
+
+    Returns:
+        :class:`SexFits`. A fit that fails keeps its prior's shape (first start) and weight.
+    """
+    priors = sex_shape_priors(body64, starts, config, stated)
+    fits, means, covariances, log_evidence = {}, {}, {}, {}
+    for sex, prior in priors.items():
+        fit = condition_on_keypoints(
+            body64, starts, evidence, config, extra_terms=extra_terms, shape_prior=prior
+        )
+        fits[sex] = fit
+        if fit.conditioned is not None and fit.shape_covariance is not None:
+            means[sex] = fit.conditioned.shape_mean.float()
+            covariances[sex] = fit.shape_covariance.float()
+            log_evidence[sex] = fit.log_evidence
+        else:
+            means[sex], covariances[sex] = prior.mean[0].float(), prior.covariance[0].float()
+            log_evidence[sex] = float(prior.log_weight[0])
+    if stated.sex is not None:
+        probabilities = {sex: float(sex == stated.sex) for sex in SEX_NAMES}
+    else:
+        probabilities = sex_probabilities(log_evidence)
+    shapes = SexShapes(
+        probabilities, means, covariances, stated.sex is not None, dict(log_evidence)
+    )
+    return SexFits(fits, priors, shapes)
+
+
+def with_sex_shape(posterior: BodyPosterior, shapes: SexShapes) -> BodyPosterior:
+    """``posterior`` (e.g. the network's, when the fit fell back) with the more probable sex's
+    shape as its shape Gaussian and ``shapes`` as its sexes."""
+    sex = shapes.most_probable
+    mean = shapes.means[sex].to(posterior.shape_mean)
+    std = shapes.covariances[sex].diagonal().clamp_min(0.0).sqrt().to(posterior.shape_std)
+    distribution = replace(posterior.distribution, shape_mean=mean, shape_std=std)
+    edited = replace(posterior, distribution=distribution, sexes=shapes)
+    if "pose_distribution" in posterior.__dict__:
+        edited.__dict__["pose_distribution"] = posterior.pose_distribution
+    return edited
