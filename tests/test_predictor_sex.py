@@ -1,0 +1,82 @@
+"""The shipped predictor with sex as a latent and stated measurements (issue 49)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+import torch
+
+from hkpd.assets import shipped_file
+from hkpd.body import BodyModel
+from hkpd.body.body_model import load_shipped_asset
+from hkpd.prediction import Predictor
+
+PHOTO = shipped_file(("photos", "warrior_lunge.jpg"), "the shipped photo", "")
+
+
+@pytest.fixture(scope="module")
+def predictor() -> Predictor:
+    torch.set_num_threads(1)
+    return Predictor.from_pretrained(device="cpu")
+
+
+@pytest.fixture(scope="module")
+def automatic(predictor: Predictor):
+    return predictor.predict(PHOTO)
+
+
+def test_automatic_posterior_weighs_both_sexes(automatic) -> None:
+    probabilities = automatic.sex_probabilities
+    assert set(probabilities) == {"female", "male"}
+    assert probabilities["female"] + probabilities["male"] == pytest.approx(1.0)
+    assert automatic.sex in ("female", "male")
+    assert set(automatic.evidence_fit.terms) == {"keypoints"}
+    assert len(repr(automatic)) <= 200
+
+
+def test_a_stated_sex_has_probability_one(predictor: Predictor) -> None:
+    posterior = predictor.predict(PHOTO, sex="male")
+    assert posterior.sex_probabilities == {"female": 0.0, "male": 1.0}
+    assert posterior.sexes.stated and posterior.sex == "male"
+    male_mean, _ = predictor.body.sex_shape_prior("male")
+    female_mean, _ = predictor.body.sex_shape_prior("female")
+    mode = posterior.shape_mean
+    assert (mode - male_mean).norm() < (mode - female_mean).norm()
+
+
+def test_stated_height_and_mass_are_honoured(predictor: Predictor) -> None:
+    posterior = predictor.predict(PHOTO, measurements={"height_m": 1.88, "mass_kg": 95.0})
+    measured = posterior.measurements()
+    assert set(measured) == {
+        "height_m", "mass_kg", "chest_m", "waist_m", "hip_m", "shoulder_width_m"
+    }  # fmt: skip
+    from hkpd.body.measurements import body_measurer
+
+    mode = body_measurer(predictor.body)(posterior.shape_mean[None])[0]
+    assert abs(float(mode[0]) - 1.88) < 0.015
+    assert abs(float(mode[1]) - 95.0) < 3.0
+    assert measured["height_m"][1] < 0.02
+    assert posterior.sex_probabilities["male"] > 0.9  # a 1.88 m, 95 kg person
+
+
+def test_samples_come_from_the_mixture_with_full_covariance(automatic) -> None:
+    samples = automatic.sample(50, seed=1)
+    again = automatic.sample(50, seed=1)
+    assert torch.equal(samples.betas, again.betas)
+    assert samples.betas.std(0).min() > 0
+
+
+def test_stated_values_are_refused_without_evidence_or_priors(predictor: Predictor) -> None:
+    with pytest.raises(ValueError, match="needs the evidence posterior"):
+        predictor.predict(PHOTO, sex="female", evidence=False)
+    with pytest.raises(ValueError, match="unknown measurement"):
+        predictor.predict(PHOTO, measurements={"weight": 70})
+    old_body = BodyModel(
+        dataclasses.replace(load_shipped_asset(), sex_shape_means=None, sex_shape_covariances=None)
+    )
+    old = Predictor(predictor.network, body=old_body, detector=predictor.detector)
+    posterior = old.predict(PHOTO)
+    assert posterior.sex_probabilities is None and posterior.conditioned
+    with pytest.raises(ValueError, match="no sex-specific shape priors"):
+        old.predict(PHOTO, sex="male")
