@@ -21,9 +21,11 @@ import numpy as np
 import torch
 
 from hkpd.body import BodyModel
+from hkpd.body.measurements import body_measurer
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import BodyDistribution, KinematicMatrixFisher
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
+from hkpd.prediction.sex_latent import gaussian_measurements
 from hkpd.uncertainty import vertex_uncertainty
 
 if TYPE_CHECKING:
@@ -164,9 +166,6 @@ class BodyPosterior:
         """``{name: (mean, std)}``: height, mass, chest, waist and hip girths and shoulder
         width (metres, kilograms; :mod:`hkpd.body.measurements` says where each is taken) under
         the shape posterior, over both sexes when sex is a latent (linearised per sex)."""
-        from hkpd.body.measurements import body_measurer
-        from hkpd.prediction.sex_latent import gaussian_measurements
-
         measurer = body_measurer(self.body)
         if self.sexes is not None:
             return self.sexes.measurements(measurer)

@@ -229,24 +229,37 @@ class Predictor:
                 chosen = readings.chosen_rows[0]
                 return self._posterior(starts, chosen, prepared, readings)
             network_posterior = self._posterior(starts, 0, prepared, readings)
-            keypoint_evidence = KeypointEvidence(
-                torch.as_tensor(prepared.keypoints_crop, dtype=torch.float64),
-                torch.as_tensor(prepared.evidence),
-                self.crop_size,
+            return self._evidence_posterior(starts, prepared, readings, network_posterior, stated)
+
+    def _evidence_posterior(
+        self,
+        starts: BodyDistribution,
+        prepared: NetworkInput,
+        readings: Readings,
+        network_posterior: BodyPosterior,
+        stated: StatedBody,
+    ) -> BodyPosterior:
+        """The network's readings conditioned on the photo's evidence (keypoints, and the mask
+        when asked for) and on what was stated, under each sex's prior when the body model has
+        them (:mod:`hkpd.prediction.sex_fits`); the network's posterior when the fit fails."""
+        keypoint_evidence = KeypointEvidence(
+            torch.as_tensor(prepared.keypoints_crop, dtype=torch.float64),
+            torch.as_tensor(prepared.evidence),
+            self.crop_size,
+        )
+        mask_terms = self._mask_terms(prepared)
+        config = self.evidence_config
+        config = config.for_mask_evidence() if mask_terms else config
+        sexes = None
+        if not self.body.has_sex_priors:
+            fit = condition_on_keypoints(
+                self._float64_body(), starts, keypoint_evidence, config, mask_terms
             )
-            mask_terms = self._mask_terms(prepared)
-            config = self.evidence_config
-            config = config.for_mask_evidence() if mask_terms else config
-            if not self.body.has_sex_priors:
-                fit = condition_on_keypoints(
-                    self._float64_body(), starts, keypoint_evidence, config, mask_terms
-                )
-                sexes = None
-            else:
-                fits = fit_each_sex(
-                    self._float64_body(), starts, keypoint_evidence, config, mask_terms, stated
-                )
-                fit, sexes = fits.winner, fits.shapes
+        else:
+            fits = fit_each_sex(
+                self._float64_body(), starts, keypoint_evidence, config, mask_terms, stated
+            )
+            fit, sexes = fits.winner, fits.shapes
         if fit.conditioned is None:
             fallback = replace(network_posterior, evidence_fit=fit, stated=stated)
             return fallback if sexes is None else with_sex_shape(fallback, sexes)
