@@ -379,6 +379,13 @@ def _shape_evaluation(arguments: argparse.Namespace, device: torch.device) -> tu
             scores, f"Shape read on the synthetic test set: {checkpoint}, {arguments.count} "
             f"examples, {source}, detector-like keypoints and masks{read}",
         ))  # fmt: skip
+        if arguments.evidence:
+            sexed = _sex_shape_record(arguments, device, mirror)
+            record |= sexed
+            parts.append(shape_report.sex_markdown(
+                sexed, f"Sex, measurements and stated values: {checkpoint}, {arguments.count} "
+                f"bodies drawn half from each sex's prior, {source}, detector-like keypoints",
+            ))  # fmt: skip
     if arguments.coco is not None:
         record["coco"] = _coco_silhouette_record(arguments, device)
         parts.append(shape_report.coco_markdown(
@@ -391,6 +398,30 @@ def _shape_evaluation(arguments: argparse.Namespace, device: torch.device) -> tu
         "mirror_reading": mirror, "mask_noise": asdict(mask_noise),
     }  # fmt: skip
     return "\n".join(parts), record
+
+
+def _sex_shape_record(arguments: argparse.Namespace, device: torch.device, mirror: bool) -> dict:
+    """:func:`hkpd.evaluation.sex_shape_eval.evaluate_sex_shape` of the checkpoint on
+    ``--count`` sex-labelled synthetic bodies (the keys ``sex``, ``measurements``,
+    ``stated`` of ``shape.json``)."""
+    from hkpd.evaluation.sex_shape_eval import evaluate_sex_shape
+    from hkpd.evaluation.test_set import network_and_generator, stored_evidence_settings
+    from hkpd.prediction.predictor import float64_body
+    from hkpd.prediction.readings import ReadingConfig
+    from hkpd.prediction.readings.proxy_reader import ProxyReader
+
+    checkpoint = arguments.checkpoints[0]
+    network, generator = network_and_generator(checkpoint, arguments.poses, device)
+    if not generator.body.has_sex_priors:
+        return {}
+    reader = ProxyReader(network, ReadingConfig(mirror=mirror), upright=False, body=generator.body)
+    return evaluate_sex_shape(
+        reader,
+        generator,
+        float64_body(generator.body),
+        arguments.count,
+        stored_evidence_settings(checkpoint),
+    )
 
 
 def _coco_silhouette_record(arguments: argparse.Namespace, device: torch.device) -> dict:

@@ -74,3 +74,27 @@ def coco_markdown(coco: dict[str, dict[str, object]], title: str) -> str:
                 "people": float(value["people"]),
             }
     return f"### {title}\n\n" + markdown_table(rows)
+
+
+def sex_markdown(record: dict, title: str) -> str:
+    """The sex, measurement and stated-values tables of
+    :func:`hkpd.evaluation.sex_shape_eval.evaluate_sex_shape`'s record (empty without one)."""
+    if "sex" not in record:
+        return ""
+    sex, stated = record["sex"], record["stated"]
+    summary = {
+        "automatic sex": {"PVE-T-SC mm": sex["pve_t_sc_mm"], "sex accuracy": sex["accuracy"],
+                          "sex ECE": sex["ece"]},
+        "sex stated": {"PVE-T-SC mm": stated["sex"]["pve_t_sc_mm"]},
+        "sex, height, mass stated": {"PVE-T-SC mm": stated["sex+height+mass"]["pve_t_sc_mm"]},
+        "mean body": {"PVE-T-SC mm": record["mean_body_pve_t_sc_mm"]},
+    }  # fmt: skip
+    measurements = {
+        name: {"MAE": values["mae"], "z²": values["z2"]}
+        for name, values in record["measurements"].items()
+    }
+    return (
+        f"### {title}\n\n" + markdown_table(summary)
+        + "\nMeasurements under the automatic posterior (MAE in metres or kg; z² 1 when the "
+        "std is honest):\n\n" + markdown_table(measurements)
+    )  # fmt: skip
