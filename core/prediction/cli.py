@@ -5,6 +5,12 @@ Usage::
     hkpd-predict IMAGE_OR_DIR... --out DIR [--model PATH] [--samples 10]
                  [--format ply|glb|obj|npz ...] [--bbox X0 Y0 X1 Y1] [--device auto] [--seed 0]
                  [--uncertainty-samples 100] [--same-person] [--silhouette-evidence] [--overwrite]
+                 [--sex female|male] [--height M [STD]] [--mass KG [STD]] [--chest M [STD]]
+                 [--waist M [STD]] [--hip M [STD]] [--shoulder-width M [STD]]
+
+``--sex`` and the measurement flags state what is known of the person
+(:mod:`hkpd.prediction.body_flags`); they condition the shape of every photo (and so of the
+combined shape) and need the evidence posterior.
 
 Folders are searched recursively for images (by extension), in sorted order. For every photo
 it writes into ``DIR/<image stem>/``:
@@ -13,7 +19,9 @@ it writes into ``DIR/<image stem>/``:
 - ``samples/sample_000.<fmt>`` ...: ``--samples`` bodies drawn from the posterior;
 - ``mode_uncertainty.<fmt>``: the mode with per-vertex uncertainty as vertex colours;
 - ``prediction.npz`` (with ``npz`` in ``--format``): distribution parameters and all vertices;
-- ``summary.json``: image, detected person, crop, keypoints, uncertainty, files, timings;
+- ``summary.json``: image, detected person, crop, keypoints, uncertainty, the sex's
+  probabilities, the measurements with stds and what was stated
+  (:mod:`hkpd.prediction.exports.body_summary`), files, timings;
 - ``overview.png``: photo with keypoints and skeletons, the outlines of the person mask and of
   the mode's silhouette, uncertainty renders and colour bar;
 - ``person_mask.png``: BlazePose's segmentation of the person, 8-bit grayscale in original
@@ -46,8 +54,11 @@ import numpy as np
 import torch
 from PIL import Image
 
+from hkpd.body.measurements import body_measurer
 from hkpd.interrupts import deferred_interrupts, interrupted, raise_if_interrupted
-from hkpd.prediction.exports.combined_shape import write_combined_shape
+from hkpd.prediction.body_flags import MEASUREMENT_FLAGS, add_body_arguments, stated_body
+from hkpd.prediction.exports.body_summary import body_arrays, body_summary, posterior_caption
+from hkpd.prediction.exports.combined_shape import CombinedBody, write_combined_shape
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
 from hkpd.prediction.exports.writers import (
     ARRAY_FORMAT,
@@ -62,9 +73,11 @@ from hkpd.prediction.exports.writers import (
     write_person_mask,
 )
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
+from hkpd.prediction.sex_latent import gaussian_measurements
 from hkpd.prediction.shape_combination import combine_shape_tensors
 
 if TYPE_CHECKING:
+    from hkpd.conditioning import StatedBody
     from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
     from hkpd.prediction.predictor import Predictor
 
@@ -150,6 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--device", default="auto", help="auto (CUDA when available), cpu, cuda")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the samples")
+    add_body_arguments(parser)
     return parser
 
 
@@ -247,6 +261,7 @@ class PhotoResult:
     note: str | None = None
     shape_mean: torch.Tensor | None = None
     shape_std: torch.Tensor | None = None
+    sex_probabilities: dict[str, float] | None = None
 
 
 def _timed(timings: dict[str, float], name: str, start: float) -> float:
@@ -268,21 +283,27 @@ def predict_photo(
     scale: UncertaintyColourScale,
     uncertainty_samples: int = UNCERTAINTY_SAMPLES,
     evidence: bool = True,
+    stated: StatedBody | None = None,
 ) -> PhotoResult:
     """Predict one photo and write its files into ``folder``.
+
+    ``stated``: what is known of the person (``--sex``, ``--height`` ...), passed to
+    :meth:`Predictor.predict` as ``sex=`` and ``measurements=``.
 
     Raises:
         ImageInputError, NoPersonFoundError, ValueError, OSError: the photo failed.
     """
     started = time.perf_counter()
     timings: dict[str, float] = {}
-    posterior = predictor.predict(image, bbox=bbox, evidence=evidence)
+    posterior = predictor.predict(image, bbox=bbox, evidence=evidence, **_stated_arguments(stated))
     clock = _timed(timings, "predict_s", started)
     mode = posterior.mode()
     drawn = posterior.sample(samples, seed=seed) if samples > 0 else None
     clock = _timed(timings, "sample_s", clock)
     uncertainty = posterior.vertex_uncertainty(n=uncertainty_samples, seed=seed)
     clock = _timed(timings, "uncertainty_s", clock)
+    measurements = posterior.measurements()
+    clock = _timed(timings, "measurements_s", clock)
 
     uncertainty_np = uncertainty.detach().cpu().double().numpy()
     folder.mkdir(parents=True, exist_ok=True)
@@ -291,19 +312,15 @@ def predict_photo(
     )
     if ARRAY_FORMAT in formats:
         arrays = distribution_arrays(posterior, mode, drawn, uncertainty)
+        arrays |= body_arrays(posterior, measurements)
         written.append(write_distribution_npz(folder / "prediction.npz", arrays))
     clock = _timed(timings, "export_s", clock)
-    caption = f"{samples} samples, model {Path(model_path).name}"
-    written.append(
-        _write_overview(
-            folder / "overview.png", posterior, mode, drawn, uncertainty_np, scale, caption
-        )
+    captions = (
+        f"{samples} samples, model {Path(model_path).name}",
+        posterior_caption(posterior, measurements),
     )
-    clock = _timed(timings, "overview_s", clock)
-    mask = posterior.network_input.detection.person_mask
-    if mask is not None:
-        written.append(write_person_mask(folder / PERSON_MASK_FILE, mask))
-        _timed(timings, "mask_s", clock)
+    overview = (posterior, mode, drawn, uncertainty_np, scale, captions)
+    written += _write_pictures(folder, overview, timings, clock)
     timings["total_s"] = round(time.perf_counter() - started, 4)
 
     summary_path = folder / "summary.json"
@@ -312,17 +329,10 @@ def predict_photo(
     summary = _photo_summary(
         image, posterior, mode, uncertainty_np, uncertainty_samples, scale, evidence, silhouette
     )
-    summary.update(
-        {
-            "samples": samples,
-            "seed": seed,
-            "formats": list(formats),
-            "frames": DISPLAY_FRAME_NOTE,
-            "files": files,
-            "timings": timings,
-            "model": model_path,
-        }
-    )
+    summary |= body_summary(posterior, measurements) | {
+        "samples": samples, "seed": seed, "formats": list(formats), "frames": DISPLAY_FRAME_NOTE,
+        "files": files, "timings": timings, "model": model_path,
+    }  # fmt: skip
     write_json(summary_path, summary)
     return PhotoResult(
         image=image,
@@ -333,7 +343,30 @@ def predict_photo(
         note=_photo_note(posterior, silhouette),
         shape_mean=posterior.shape_mean.detach().cpu(),
         shape_std=posterior.shape_std.detach().cpu(),
+        sex_probabilities=posterior.sex_probabilities,
     )
+
+
+def _write_pictures(
+    folder: Path, overview: tuple, timings: dict[str, float], clock: float
+) -> list[Path]:
+    """The overview (``overview``: :func:`_write_overview`'s arguments after the path) and the
+    person mask, when the detector gave one, into ``folder``; their times go into
+    ``timings``."""
+    written = [_write_overview(folder / "overview.png", *overview)]
+    clock = _timed(timings, "overview_s", clock)
+    mask = overview[0].network_input.detection.person_mask
+    if mask is not None:
+        written.append(write_person_mask(folder / PERSON_MASK_FILE, mask))
+        _timed(timings, "mask_s", clock)
+    return written
+
+
+def _stated_arguments(stated: StatedBody | None) -> dict[str, object]:
+    """``sex=`` and ``measurements=`` for :meth:`Predictor.predict` (None for nothing stated)."""
+    if stated is None:
+        return {"sex": None, "measurements": None}
+    return {"sex": stated.sex, "measurements": dict(stated.measurements) or None}
 
 
 def _photo_note(posterior: BodyPosterior, silhouette: bool) -> str | None:
@@ -379,10 +412,10 @@ def _write_overview(
     drawn: BodyMeshes | None,
     uncertainty: np.ndarray,
     scale: UncertaintyColourScale,
-    caption: str,
+    captions: tuple[str, str],
 ) -> Path:
     """Write the overview picture (:func:`hkpd.prediction.exports.overview.make_overview`) to
-    ``path``."""
+    ``path``; ``captions``: the run's line and the body's line (its sex and measurements)."""
     from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
     from hkpd.prediction.exports.overview import Outlines, make_overview
 
@@ -406,8 +439,9 @@ def _write_overview(
         posterior.body.faces,
         uncertainty,
         scale,
-        caption=caption,
+        caption=captions[0],
         outlines=outlines,
+        body_caption=captions[1],
     )
     Image.fromarray(overview).save(path)
     return path
@@ -512,6 +546,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         formats, bbox = _checked_options(args)
+        stated = _checked_stated(args)
     except UsageError as error:
         parser.print_usage(sys.stderr)
         print(f"{PROG}: error: {error}", file=sys.stderr)
@@ -534,7 +569,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         predictor = _loaded_or_reported(args)
     except KeyboardInterrupt:
         return interrupted(PROG, " while loading the model; no photo was predicted")
-    if predictor is None:
+    if predictor is None or not _body_can_take(predictor, stated):
         return 2
     if args.silhouette_evidence:
         predictor.silhouette_evidence = True
@@ -558,13 +593,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             scale=scale,
             uncertainty_samples=args.uncertainty_samples,
             evidence=not args.no_evidence,
+            stated=stated,
         )
 
     try:
         _predict_all(predict_into, list(zip(images, names, strict=True)), args.out, results)
         combined = None
         if args.same_person:
-            combined = _combine_into(args.out / combined_name, predictor, results, formats, scale)
+            combined = _combine_into(
+                args.out / combined_name, predictor, results, formats, scale, stated
+            )
     except KeyboardInterrupt:
         if created_out and args.out.is_dir() and not any(args.out.iterdir()):
             args.out.rmdir()  # nothing was written: leave no empty folder behind
@@ -595,6 +633,44 @@ def _checked_options(
         raise UsageError(f"--uncertainty-samples must be >= 2, got {args.uncertainty_samples}")
     check_out_folder(args.out)
     return formats, bbox
+
+
+def _checked_stated(args: argparse.Namespace) -> StatedBody:
+    """What ``--sex`` and the measurement flags state, checked before the model loads.
+
+    Raises:
+        UsageError: a value that is not a plausible number (the message names the flag), or
+            something stated together with ``--no-evidence``.
+    """
+    try:
+        stated = stated_body(args)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if not stated.empty and args.no_evidence:
+        given = (["--sex"] if stated.sex is not None else []) + [
+            MEASUREMENT_FLAGS[name] for name in stated.measurements
+        ]
+        raise UsageError(
+            f"{' '.join(given)} condition the body shape in the evidence fit, which "
+            "--no-evidence turns off; give one or the other"
+        )
+    return stated
+
+
+def _body_can_take(predictor: Predictor, stated: StatedBody) -> bool:
+    """Whether the model's body can be conditioned on ``stated`` (True when nothing is
+    stated); prints why not."""
+    if stated.empty or getattr(predictor.body, "has_sex_priors", False):
+        return True
+    print(
+        f"{PROG}: error: the model's body has no sex-specific shape priors, so --sex and the "
+        "measurement flags cannot be used with it; use the shipped body model or drop them",
+        file=sys.stderr,
+    )
+    closer = getattr(predictor, "close", None)
+    if closer is not None:
+        closer()
+    return False
 
 
 def check_out_folder(out: Path) -> None:
@@ -724,9 +800,12 @@ def _combine_into(
     results: Sequence[PhotoResult],
     formats: Sequence[str],
     scale: UncertaintyColourScale,
+    stated: StatedBody | None = None,
 ) -> str:
     """Write the shape combined from the photos that succeeded into ``folder`` (atomically)
-    and say what was written, for the final line (a failure is also printed to stderr)."""
+    and say what was written, for the final line (a failure is also printed to stderr).
+
+    ``stated``: what every photo's shape was conditioned on (said in ``shape.json``)."""
     done = [result for result in results if result.error is None and result.shape_mean is not None]
     if not done:
         return "no combined shape (no photo succeeded)"
@@ -735,12 +814,20 @@ def _combine_into(
     try:
         combined = combine_shape_tensors(means, stds, predictor.body, "product")
         baseline = combine_shape_tensors(means, stds, predictor.body, "mean")
+        about = CombinedBody(
+            measurements=gaussian_measurements(
+                body_measurer(predictor.body), combined.betas_mean, combined.betas_std
+            ),
+            photo_sex_probabilities=tuple(result.sex_probabilities for result in done),
+            stated=stated,
+        )
         files = _written_atomically(
             folder,
             lambda partial: write_combined_shape(
-                partial, combined, baseline, [r.image for r in done], means, stds, formats, scale
+                partial, combined, baseline, [r.image for r in done], means, stds, formats,
+                scale, about,
             ),
-        )
+        )  # fmt: skip
     except (ValueError, OSError) as error:
         failure = f"combined shape FAILED: {_one_line(error)}"
         print(f"{PROG}: {failure}", file=sys.stderr)

@@ -10,17 +10,23 @@ Into one folder :func:`write_combined_shape` writes:
   ``photo_betas_mean (N, K)``, ``photo_betas_std (N, K)``, ``baseline_betas_mean (K,)``,
   ``tpose_vertices (V, 3)`` (camera-aligned body frame), ``uncertainty (V,)`` metres,
   ``faces (F, 3)``;
-- ``shape.json``: the same numbers (without the meshes), the photos, the method and the files.
+- ``shape.json``: the same numbers (without the meshes), the photos, the method and the files;
+  with a :class:`CombinedBody`, also the combined shape's ``"measurements"`` (``{name: {"mean",
+  "std"}}``), each photo's ``"photo_sex_probabilities"`` and what was ``"stated"`` (with a note
+  on how the combination counts it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
+from hkpd.prediction.exports.body_summary import measurement_summary, stated_summary
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
 from hkpd.prediction.exports.writers import (
     ARRAY_FORMAT,
@@ -32,10 +38,54 @@ from hkpd.prediction.exports.writers import (
 )
 from hkpd.prediction.shape_combination import CombinedShape
 
+if TYPE_CHECKING:
+    from hkpd.conditioning import StatedBody
+
 METHOD_NOTE = (
     "product: precision-weighted product of the photos' diagonal shape Gaussians "
     "(1/std^2 = sum 1/std_i^2, mean = std^2 sum mean_i/std_i^2); the baseline averages the means"
 )
+
+STATED_NOTE = (
+    "every photo's shape was conditioned on the stated values (and on its more probable sex's "
+    "population prior); the product of the photos' shape Gaussians counts them once per photo, "
+    "so along the stated measurements the combined std is too small (the combination cannot "
+    "take stated values once yet)"
+)
+
+
+@dataclass(frozen=True)
+class CombinedBody:
+    """What ``shape.json`` says about the combined body besides its shape coefficients.
+
+    Attributes:
+        measurements: ``{name: (mean, std)}`` of the combined shape Gaussian (metres,
+            kilograms), or None.
+        photo_sex_probabilities: per combined photo, ``{"female": p, "male": 1 - p}`` or None;
+            each photo contributes the shape of its more probable sex.
+        stated: what every photo was conditioned on, or None.
+    """
+
+    measurements: Mapping[str, tuple[float, float]] | None = None
+    photo_sex_probabilities: Sequence[Mapping[str, float] | None] = ()
+    stated: StatedBody | None = None
+
+    def summary(self) -> dict[str, object]:
+        """The ``shape.json`` keys: ``"measurements"``, ``"photo_sex_probabilities"``,
+        ``"stated"`` and, when something was stated, ``"stated_note"``."""
+        stated = stated_summary(self.stated)
+        keys: dict[str, object] = {
+            "measurements": None
+            if self.measurements is None
+            else measurement_summary(self.measurements),
+            "photo_sex_probabilities": [
+                None if item is None else dict(item) for item in self.photo_sex_probabilities
+            ],
+            "stated": stated,
+        }
+        if stated is not None:
+            keys["stated_note"] = STATED_NOTE
+        return keys
 
 
 def write_combined_shape(
@@ -47,6 +97,7 @@ def write_combined_shape(
     photo_stds: torch.Tensor,
     formats: Sequence[str],
     scale: UncertaintyColourScale,
+    body: CombinedBody | None = None,
 ) -> list[str]:
     """Write the combined shape's files into ``folder`` (created) and return their names.
 
@@ -58,6 +109,8 @@ def write_combined_shape(
         photo_means, photo_stds: ``(N, K)`` their shape Gaussians.
         formats: output formats (mesh formats and/or ``npz``).
         scale: colour scale of the uncertainty mesh.
+        body: the combined body's measurements, the photos' sexes and what was stated (None:
+            not written).
     """
     folder.mkdir(parents=True, exist_ok=True)
     uncertainty = combined.vertex_uncertainty.detach().cpu().double().numpy()
@@ -107,5 +160,7 @@ def write_combined_shape(
         "formats": list(formats),
         "files": files,
     }
+    if body is not None:
+        summary |= body.summary()
     write_json(summary_path, summary)
     return files

@@ -281,6 +281,27 @@ def draw_colour_bar(scale: UncertaintyColourScale, height: int, width: int = 110
     return np.asarray(image)
 
 
+def _draw_legend(
+    draw: ImageDraw.ImageDraw,
+    x: int,
+    y: int,
+    font: ImageFont.FreeTypeFont | ImageFont.ImageFont,
+    with_mask: bool,
+) -> None:
+    """The photo panel's legend (detected keypoints, mode, samples and, ``with_mask``, the
+    mask's outline), one row starting at ``x`` centred on ``y``."""
+    draw.ellipse((x, y - 5, x + 10, y + 5), fill=(255, 255, 255), outline=TEXT)
+    draw.text((x + 15, y), "detected", fill=TEXT, font=font, anchor="lm")
+    legend_x = x + 15 + int(draw.textlength("detected", font=font)) + 14
+    entries = [("mode", MODE_COLOUR, 4), ("samples", SAMPLE_COLOUR, 3)]
+    if with_mask:
+        entries.append(("mask", MASK_COLOUR, 3))
+    for label, colour, width in entries:
+        draw.line((legend_x, y, legend_x + 22, y), fill=colour, width=width)
+        draw.text((legend_x + 27, y), label, fill=TEXT, font=font, anchor="lm")
+        legend_x += 27 + int(draw.textlength(label, font=font)) + 14
+
+
 def make_overview(
     photo: LoadedImage,
     crop: CropTransform,
@@ -295,6 +316,7 @@ def make_overview(
     height: int = 480,
     caption: str = "",
     outlines: Outlines | None = None,
+    body_caption: str = "",
 ) -> np.ndarray:
     """The whole overview (see the module docstring), ``(H, W, 3)`` uint8 RGB.
 
@@ -308,6 +330,9 @@ def make_overview(
         height: height of the panels, pixels (the picture adds a title row and a footer).
         caption: a line of text for the footer.
         outlines: the person mask and mode silhouette to outline on the photo (None: neither).
+        body_caption: a line about the drawn body (its sex and measurements,
+            :func:`hkpd.prediction.exports.body_summary.body_caption`), shown in the footer
+            under the mode's renders, above ``caption`` (empty: the footer keeps one line).
     """
     values = np.asarray(uncertainty, dtype=np.float64)
     skeletons = draw_skeletons(
@@ -325,7 +350,8 @@ def make_overview(
     side = _trim_columns(side, masks[1], int(height * 0.42), height // 20)
     bar = draw_colour_bar(scale, height)
     gap = max(8, height // 40)
-    title_height, footer_height = max(28, height // 16), max(26, height // 18)
+    title_height, row_height = max(28, height // 16), max(26, height // 18)
+    footer_height = row_height * (2 if body_caption else 1)
     panels = [skeletons, front, side, bar]
     width = sum(panel.shape[1] for panel in panels) + gap * (len(panels) + 1)
     canvas = Image.new("RGB", (width, height + title_height + footer_height), BACKGROUND)
@@ -343,21 +369,16 @@ def make_overview(
         canvas.paste(Image.fromarray(panel), (x, title_height))
         draw.text((x + 2, title_height - 6), title, fill=TEXT, font=font, anchor="ls")
         x += panel.shape[1] + gap
-    legend_y = title_height + height + footer_height // 2
-    draw.ellipse((gap, legend_y - 5, gap + 10, legend_y + 5), fill=(255, 255, 255), outline=TEXT)
-    draw.text((gap + 15, legend_y), "detected", fill=TEXT, font=small, anchor="lm")
-    legend_x = gap + 15 + int(draw.textlength("detected", font=small)) + 14
-    draw.line((legend_x, legend_y, legend_x + 22, legend_y), fill=MODE_COLOUR, width=4)
-    draw.text((legend_x + 27, legend_y), "mode", fill=TEXT, font=small, anchor="lm")
-    legend_x += 27 + int(draw.textlength("mode", font=small)) + 14
-    draw.line((legend_x, legend_y, legend_x + 22, legend_y), fill=SAMPLE_COLOUR, width=3)
-    draw.text((legend_x + 27, legend_y), "samples", fill=TEXT, font=small, anchor="lm")
-    if outlines is not None and outlines.person_mask is not None:
-        legend_x += 27 + int(draw.textlength("samples", font=small)) + 14
-        draw.line((legend_x, legend_y, legend_x + 22, legend_y), fill=MASK_COLOUR, width=3)
-        draw.text((legend_x + 27, legend_y), "mask", fill=TEXT, font=small, anchor="lm")
+    legend_y = title_height + height + row_height // 2
+    _draw_legend(
+        draw, gap, legend_y, small, outlines is not None and outlines.person_mask is not None
+    )
     mean_cm, max_cm = 100 * float(values.mean()), 100 * float(values.max())
     stats = f"vertex uncertainty: mean {mean_cm:.1f} cm, max {max_cm:.1f} cm"
     text = f"{stats}   {caption}".strip()
-    draw.text((skeletons.shape[1] + 2 * gap, legend_y), text, fill=TEXT, font=small, anchor="lm")
+    text_x = skeletons.shape[1] + 2 * gap
+    if body_caption:
+        draw.text((text_x, legend_y), body_caption, fill=TEXT, font=font, anchor="lm")
+        legend_y += row_height
+    draw.text((text_x, legend_y), text, fill=TEXT, font=small, anchor="lm")
     return np.asarray(canvas)

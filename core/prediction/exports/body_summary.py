@@ -1,0 +1,151 @@
+"""What ``hkpd-predict``'s files say about the body: the sex with its probability, the
+measurements with their stds, and what the user stated.
+
+- :func:`body_summary`: the ``summary.json`` keys ``"drawn_sex"``, ``"sex_probabilities"``,
+  ``"measurements"`` and ``"stated"``;
+- :func:`body_caption`: the overview's line, e.g. ``"body: male 87 %, height 1.78 ± 0.05 m,
+  mass 73 ± 6 kg"`` (``"male (stated)"`` for a stated sex);
+- :func:`body_arrays`: the ``prediction.npz`` arrays of the sexes and measurements.
+
+Measurements are those of :meth:`hkpd.prediction.posterior.BodyPosterior.measurements`
+(metres, kilograms; :mod:`hkpd.body.measurements` says where each is taken).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hkpd.body.asset import SEX_NAMES
+from hkpd.body.measurements import MEASUREMENT_NAMES
+
+if TYPE_CHECKING:
+    from hkpd.conditioning import StatedBody
+    from hkpd.prediction.posterior import BodyPosterior
+
+Measurements = Mapping[str, tuple[float, float]]
+"""``{name: (mean, std)}`` as :meth:`BodyPosterior.measurements` returns it."""
+
+
+def stated_summary(stated: StatedBody | None) -> dict[str, Any] | None:
+    """``{"sex": s | None, "measurements": {name: {"value": v, "std": s}}}``, or None when
+    nothing was stated."""
+    if stated is None or stated.empty:
+        return None
+    return {
+        "sex": stated.sex,
+        "measurements": {
+            name: {"value": value, "std": std} for name, (value, std) in stated.measurements.items()
+        },
+    }
+
+
+def measurement_summary(measurements: Measurements) -> dict[str, dict[str, float]]:
+    """``{name: {"mean": m, "std": s}}`` in :data:`MEASUREMENT_NAMES` order."""
+    return {
+        name: {"mean": float(measurements[name][0]), "std": float(measurements[name][1])}
+        for name in MEASUREMENT_NAMES
+        if name in measurements
+    }
+
+
+def body_summary(posterior: BodyPosterior, measurements: Measurements) -> dict[str, Any]:
+    """The ``summary.json`` keys about the body.
+
+    Args:
+        posterior: the photo's posterior.
+        measurements: ``posterior.measurements()`` (passed in: it is computed once per photo).
+
+    Returns:
+        ``"drawn_sex"``: the sex whose body the mode and the overview draw (None without sexes);
+        ``"sex_probabilities"``: ``{"female": p, "male": 1 - p}`` or None (the network's own
+        posterior, or a body model without sex priors); ``"measurements"``:
+        :func:`measurement_summary`; ``"stated"``: :func:`stated_summary`.
+    """
+    probabilities = posterior.sex_probabilities
+    return {
+        "drawn_sex": posterior.sex,
+        "sex_probabilities": None if probabilities is None else dict(probabilities),
+        "measurements": measurement_summary(measurements),
+        "stated": stated_summary(posterior.stated),
+    }
+
+
+def _sex_text(probabilities: Mapping[str, float] | None, stated: bool) -> str | None:
+    """``"male 87 %"``, ``"female > 99 %"``, ``"male (stated)"``, or None without sexes."""
+    if not probabilities:
+        return None
+    sex = max(SEX_NAMES, key=lambda name: (probabilities[name], name == "female"))
+    if stated:
+        return f"{sex} (stated)"
+    percent = 100.0 * probabilities[sex]
+    return f"{sex} > 99 %" if percent > 99.5 else f"{sex} {percent:.0f} %"
+
+
+def _plus_minus(mean: float, std: float, decimals: int, unit: str) -> str:
+    """``"1.78 ± 0.05 m"``, one more decimal when the std would round to 0."""
+    if round(std, decimals) == 0:
+        decimals += 1
+    return f"{mean:.{decimals}f} ± {std:.{decimals}f} {unit}"
+
+
+def body_caption(
+    probabilities: Mapping[str, float] | None, sex_stated: bool, measurements: Measurements
+) -> str:
+    """The overview's line about the body: the more probable sex (the one drawn) with its
+    probability, then height and mass with ± one std.
+
+    Args:
+        probabilities: ``{"female": p, "male": 1 - p}`` or None (no sex latent: not shown).
+        sex_stated: the sex was stated by the user (shown as ``"(stated)"``).
+        measurements: ``{name: (mean, std)}``; height and mass are shown when present.
+    """
+    parts = [_sex_text(probabilities, sex_stated)]
+    if "height_m" in measurements:
+        parts.append("height " + _plus_minus(*measurements["height_m"], 2, "m"))
+    if "mass_kg" in measurements:
+        parts.append("mass " + _plus_minus(*measurements["mass_kg"], 0, "kg"))
+    shown = [part for part in parts if part]
+    return "body: " + ", ".join(shown) if shown else ""
+
+
+def posterior_caption(posterior: BodyPosterior, measurements: Measurements) -> str:
+    """:func:`body_caption` of a posterior."""
+    stated = posterior.sexes is not None and posterior.sexes.stated
+    return body_caption(posterior.sex_probabilities, stated, measurements)
+
+
+def body_arrays(posterior: BodyPosterior, measurements: Measurements) -> dict[str, np.ndarray]:
+    """The ``prediction.npz`` arrays of the body's sexes and measurements.
+
+    Returns:
+        ``measurement_names (6,)`` str, ``measurement_mean (6,)``, ``measurement_std (6,)``
+        (metres, kilograms) and, with sexes, ``sex_names (2,)`` str (``female``, ``male``),
+        ``sex_probabilities (2,)``, ``sex_stated ()`` bool, ``sex_shape_means (2, K)`` and
+        ``sex_shape_covariances (2, K, K)`` (each sex's shape posterior; NaN for a sex that
+        was not fitted, i.e. the other one when the sex was stated).
+    """
+    arrays: dict[str, np.ndarray] = {
+        "measurement_names": np.asarray(MEASUREMENT_NAMES),
+        "measurement_mean": np.asarray([measurements[n][0] for n in MEASUREMENT_NAMES]),
+        "measurement_std": np.asarray([measurements[n][1] for n in MEASUREMENT_NAMES]),
+    }
+    sexes = posterior.sexes
+    if sexes is None:
+        return arrays
+    size = int(posterior.shape_mean.shape[-1])
+    means = np.full((len(SEX_NAMES), size), np.nan)
+    covariances = np.full((len(SEX_NAMES), size, size), np.nan)
+    for index, sex in enumerate(SEX_NAMES):
+        if sex in sexes.means:
+            means[index] = sexes.means[sex].detach().cpu().double().numpy()
+            covariances[index] = sexes.covariances[sex].detach().cpu().double().numpy()
+    return arrays | {
+        "sex_names": np.asarray(SEX_NAMES),
+        "sex_probabilities": np.asarray([sexes.probabilities[sex] for sex in SEX_NAMES]),
+        "sex_stated": np.bool_(sexes.stated),
+        "sex_shape_means": means,
+        "sex_shape_covariances": covariances,
+    }
