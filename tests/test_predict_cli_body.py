@@ -1,0 +1,243 @@
+"""``hkpd-predict --sex/--height/--mass ...``: what the user knows of the body, and what the files
+say about it (the sex's probabilities, the measurements with stds, what was stated).
+
+Same set-up as ``test_predict_cli.py`` (a rendered photo, a fake detector returning its true
+keypoints, a tiny untrained network saved as a real checkpoint); two runs serve all the tests
+that need one.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from PIL import Image
+from test_predict_cli import checkpoint, fake_predictor_factory, scene  # noqa: F401 (fixtures)
+
+from hkpd.body.measurements import MEASUREMENT_NAMES
+from hkpd.prediction import cli
+from hkpd.prediction.body_flags import stated_body
+from hkpd.prediction.exports.body_summary import body_caption
+from hkpd.prediction.exports.overview import BACKGROUND
+
+STATED = ["--sex", "male", "--height", "1.85", "--mass", "80", "2"]
+
+
+def _run(arguments, monkeypatch, factory):
+    """``hkpd-predict arguments`` with ``factory`` as the model loader; the exit code and the
+    captured stderr."""
+    import contextlib
+    import io
+
+    monkeypatch.setattr(cli, "load_predictor", factory)
+    stderr = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(stderr):
+        code = cli.main([str(a) for a in arguments])
+    return code, stderr.getvalue()
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory, scene, checkpoint, fake_predictor_factory):  # noqa: F811
+    """One photo with nothing stated ("auto"), and two copies of it with ``STATED`` and
+    ``--same-person`` ("stated")."""
+    root = tmp_path_factory.mktemp("body")
+    photo = root / "photos" / "person.png"
+    photo.parent.mkdir()
+    Image.fromarray(scene.image).save(photo)
+    shutil.copy(photo, photo.with_name("again.png"))
+    common = ["--model", checkpoint, "--samples", "1", "--uncertainty-samples", "4", "--format",
+              "npz"]  # fmt: skip
+    monkeypatch = pytest.MonkeyPatch()
+    codes = {
+        "auto": _run([photo, "--out", root / "auto", *common], monkeypatch,
+                     fake_predictor_factory)[0],
+        "stated": _run([photo, photo.with_name("again.png"), "--out", root / "stated", *common,
+                        "--same-person", *STATED], monkeypatch, fake_predictor_factory)[0],
+    }  # fmt: skip
+    monkeypatch.undo()
+    return {"root": root, "codes": codes}
+
+
+def _summary(runs, name: str, photo: str = "person") -> dict:
+    return json.loads((runs["root"] / name / photo / "summary.json").read_text())
+
+
+def test_the_flags_are_parsed_into_what_is_stated():
+    args = cli.build_parser().parse_args(
+        ["a.jpg", "--out", "r", "--sex", "female", "--height", "1.62", "--mass", "55", "1.5",
+         "--shoulder-width", "0.36"]
+    )  # fmt: skip
+    stated = stated_body(args)
+    assert stated.sex == "female"
+    assert dict(stated.measurements) == {
+        "height_m": (1.62, 0.01),  # the default std
+        "mass_kg": (55.0, 1.5),
+        "shoulder_width_m": (0.36, 0.01),
+    }
+    nothing = stated_body(cli.build_parser().parse_args(["a.jpg", "--out", "r"]))
+    assert nothing.empty
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--height", "182"], "--height 182: height_m = 182 m is outside"),
+        (["--mass", "eighty"], "--mass eighty: not a number"),
+        (["--waist", "0.8", "0.02", "3"], "--waist 0.8 0.02 3: give a value in metres"),
+        (["--height", "1.8", "-0.01"], "height_m's std must be > 0"),
+        (["--hip", "nan"], "must be finite"),
+        (["--sex", "male", "--mass", "70", "--no-evidence"], "--sex --mass condition the body"),
+    ],
+)
+def test_bad_body_flags_are_usage_errors_before_the_model_loads(
+    tmp_path, capsys, monkeypatch, arguments, message
+):
+    def no_model(*_):
+        raise AssertionError("the model was loaded")
+
+    monkeypatch.setattr(cli, "load_predictor", no_model)
+    code = cli.main(["photo.jpg", "--out", str(tmp_path / "out"), *arguments])
+    error = capsys.readouterr().err
+    assert code == 2
+    assert message in error and "usage: hkpd-predict" in error and "Traceback" not in error
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_unknown_sex_is_refused_by_argparse(tmp_path, capsys):
+    with pytest.raises(SystemExit) as stopped:
+        cli.main(["photo.jpg", "--out", str(tmp_path), "--sex", "other"])
+    assert stopped.value.code == 2
+    assert "invalid choice: 'other'" in capsys.readouterr().err
+
+
+def test_a_body_without_sex_priors_is_refused_once(tmp_path, monkeypatch):
+    closed = []
+    predictor = SimpleNamespace(
+        body=SimpleNamespace(has_sex_priors=False), close=lambda: closed.append(True)
+    )
+    code, error = _run(
+        ["photo.jpg", "--out", tmp_path / "out", "--height", "1.7"],
+        monkeypatch,
+        lambda model, device: predictor,
+    )
+    assert code == 2 and closed == [True]
+    assert "no sex-specific shape priors" in error and "--sex" in error
+
+
+def test_the_summary_says_the_sexes_and_the_measurements(runs):
+    assert runs["codes"]["auto"] == 0
+    summary = _summary(runs, "auto")
+    probabilities = summary["sex_probabilities"]
+    assert set(probabilities) == {"female", "male"}
+    assert all(0.0 <= p <= 1.0 for p in probabilities.values())
+    assert probabilities["female"] + probabilities["male"] == pytest.approx(1.0, abs=1e-5)
+    assert summary["drawn_sex"] == max(probabilities, key=probabilities.get)
+    assert summary["stated"] is None
+    measurements = summary["measurements"]
+    assert list(measurements) == list(MEASUREMENT_NAMES)
+    assert all(set(item) == {"mean", "std"} and item["std"] > 0 for item in measurements.values())
+    assert 1.2 < measurements["height_m"]["mean"] < 2.2
+    assert 30 < measurements["mass_kg"]["mean"] < 150
+
+
+def test_the_npz_holds_each_sexs_shape_and_probability(runs):
+    summary = _summary(runs, "auto")
+    arrays = np.load(runs["root"] / "auto" / "person" / "prediction.npz")
+    assert list(arrays["sex_names"]) == ["female", "male"]
+    np.testing.assert_allclose(
+        arrays["sex_probabilities"],
+        [summary["sex_probabilities"]["female"], summary["sex_probabilities"]["male"]],
+        atol=1e-5,
+    )
+    assert arrays["sex_shape_means"].shape == (2, 10)
+    covariances = arrays["sex_shape_covariances"]
+    assert covariances.shape == (2, 10, 10)
+    np.testing.assert_allclose(covariances, covariances.transpose(0, 2, 1), atol=1e-6)
+    assert (np.linalg.eigvalsh(covariances.astype(np.float64)) > 0).all()
+    # The distribution's own shape is the drawn sex's.
+    drawn = ["female", "male"].index(summary["drawn_sex"])
+    np.testing.assert_allclose(arrays["shape_mean"], arrays["sex_shape_means"][drawn], atol=1e-5)
+    assert list(arrays["measurement_names"]) == list(MEASUREMENT_NAMES)
+    np.testing.assert_allclose(
+        arrays["measurement_mean"],
+        [summary["measurements"][name]["mean"] for name in MEASUREMENT_NAMES],
+        rtol=1e-5,
+    )
+    assert not bool(arrays["sex_stated"])
+
+
+def test_stated_values_reach_the_posterior_and_are_reported(runs):
+    assert runs["codes"]["stated"] == 0
+    summary = _summary(runs, "stated")
+    assert summary["sex_probabilities"] == {"female": 0.0, "male": 1.0}
+    assert summary["drawn_sex"] == "male"
+    assert summary["stated"] == {
+        "sex": "male",
+        "measurements": {
+            "height_m": {"value": 1.85, "std": 0.01},
+            "mass_kg": {"value": 80.0, "std": 2.0},
+        },
+    }
+    height, mass = summary["measurements"]["height_m"], summary["measurements"]["mass_kg"]
+    assert abs(height["mean"] - 1.85) < 0.015 and height["std"] <= 0.0105
+    assert abs(mass["mean"] - 80.0) < 3.0 and mass["std"] <= 2.05
+    arrays = np.load(runs["root"] / "stated" / "person" / "prediction.npz")
+    assert bool(arrays["sex_stated"])
+    np.testing.assert_array_equal(arrays["sex_probabilities"], [0.0, 1.0])
+    assert np.isnan(arrays["sex_shape_means"][0]).all()  # the female shape was not fitted
+    assert np.isfinite(arrays["sex_shape_means"][1]).all()
+
+
+def test_the_same_person_shape_says_what_was_stated_and_how_it_counts(runs):
+    shape = json.loads((runs["root"] / "stated" / "same_person_shape" / "shape.json").read_text())
+    assert shape["count"] == 2
+    assert shape["photo_sex_probabilities"] == [{"female": 0.0, "male": 1.0}] * 2
+    assert shape["stated"]["sex"] == "male"
+    assert "once per photo" in shape["stated_note"]
+    photo_height = _summary(runs, "stated")["measurements"]["height_m"]
+    height = shape["measurements"]["height_m"]
+    assert abs(height["mean"] - photo_height["mean"]) < 0.005
+    # Two copies of one photo: the product halves the variance (the stated height counted
+    # twice, as the note says).
+    assert height["std"] == pytest.approx(photo_height["std"] / math.sqrt(2), rel=0.15)
+    assert list(shape["measurements"]) == list(MEASUREMENT_NAMES)
+
+
+def test_the_overview_footer_has_a_line_about_the_body(runs):
+    image = np.asarray(Image.open(runs["root"] / "auto" / "person" / "overview.png"))
+    # 480 px panels, a 30 px title row and two 26 px footer rows (one without the body line).
+    assert image.shape[0] == 480 + 30 + 2 * 26
+    dark = np.abs(image.astype(int) - np.asarray(BACKGROUND)).max(-1) > 120
+    right = slice(image.shape[1] // 2, None)
+    assert dark[510:536, right].sum() > 100  # the body line
+    assert dark[536:562, right].sum() > 100  # the uncertainty and run line
+
+
+@pytest.mark.parametrize(
+    "probabilities, stated, measurements, expected",
+    [
+        ({"female": 0.13, "male": 0.87}, False, {"height_m": (1.781, 0.052),
+         "mass_kg": (73.4, 6.2)}, "body: male 87 %, height 1.78 ± 0.05 m, mass 73 ± 6 kg"),
+        ({"female": 0.0, "male": 1.0}, True, {"height_m": (1.85, 0.0099)},
+         "body: male (stated), height 1.85 ± 0.01 m"),
+        ({"female": 0.998, "male": 0.002}, False, {"mass_kg": (58.04, 0.4)},
+         "body: female > 99 %, mass 58.0 ± 0.4 kg"),
+        ({"female": 0.5, "male": 0.5}, False, {}, "body: female 50 %"),
+        (None, False, {"height_m": (1.7, 0.003)}, "body: height 1.700 ± 0.003 m"),
+        (None, False, {}, ""),
+    ],
+)  # fmt: skip
+def test_the_body_caption(probabilities, stated, measurements, expected):
+    assert body_caption(probabilities, stated, measurements) == expected
+
+
+def test_the_stated_body_flags_are_listed_in_the_help(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["--help"])
+    shown = capsys.readouterr().out
+    for flag in ("--sex", "--height", "--mass", "--chest", "--waist", "--hip", "--shoulder-width"):
+        assert flag in shown
