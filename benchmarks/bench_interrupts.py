@@ -6,7 +6,17 @@ The folder holds copies of the shipped CC0 photo; the shipped model. The time ra
 one uninterrupted run's wall time (measured first), so the signals land during the imports,
 the model load and the photos in proportion to how long each takes.
 
-Usage: python benchmarks/bench_interrupts.py [--runs 20] [--photos 3] [--seed 0]
+The ``--late-runs`` runs aim at the end instead: one SIGINT at a uniformly random time between
+the moment the progress bar reaches 100 % (every photo done) and the end of the uninterrupted
+run (its closing report and Python's shutdown; the SIGINT is due before the process ends).
+There, before issue 51, Python had given SIGINT its default action back and the run ended by
+the signal (status -2, no line).
+
+The programs run as their console scripts do (``hkpd.interrupts.run_program``), each with
+SIGINT's default action whatever this script inherited (``nohup ... &`` ignores it).
+
+Usage: python benchmarks/bench_interrupts.py [--runs 20] [--late-runs 20] [--photos 3] [--seed 0]
+       [--entry run_program|run_command]
 """
 
 from __future__ import annotations
@@ -20,6 +30,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -27,24 +38,73 @@ import numpy as np
 from hkpd.explorer.demo_photo import shipped_photo
 
 LAUNCH = (
-    "import sys; from hkpd.interrupts import run_command; "
-    "sys.exit(run_command(sys.argv[1], sys.argv[2:]))"
+    "import sys; from hkpd import interrupts; "
+    "sys.exit(getattr(interrupts, sys.argv[1])(sys.argv[2], sys.argv[3:]))"
 )
+"""``python -c LAUNCH ENTRY PROGRAM ARGS...``: ``run_program`` is what the installed
+``hkpd-predict`` runs (``hkpd.interrupts:predict``); ``run_command`` (``--entry``) is the
+entry point before issue 51, for the comparison."""
+
+ENTRY = ["run_program"]
+"""The entry point the runs use (set from ``--entry``)."""
+
+ALL_DONE = b"100%"
+"""On stderr when the progress bar is full: every photo is done."""
 
 
-def run(photos: Path, out: Path, after_s: float | None) -> tuple[int, str, float]:
-    """hkpd-predict on ``photos``, SIGINT after ``after_s`` (None: none); status, stderr, s."""
-    command = [sys.executable, "-c", LAUNCH, "hkpd-predict", str(photos), "--out", str(out),
-               "--samples", "1", "--uncertainty-samples", "10"]  # fmt: skip
-    start = time.perf_counter()
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    if after_s is not None:
-        try:
-            process.wait(timeout=after_s)
-        except subprocess.TimeoutExpired:
-            process.send_signal(signal.SIGINT)
+def default_sigint() -> None:
+    """Popen's ``preexec_fn``: SIGINT's default action in the child, as from a terminal."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def start(photos: Path, out: Path) -> subprocess.Popen:
+    """hkpd-predict on ``photos`` into ``out``, stderr piped."""
+    command = [sys.executable, "-c", LAUNCH, ENTRY[0], "hkpd-predict", str(photos),
+               "--out", str(out), "--samples", "1", "--uncertainty-samples", "10"]  # fmt: skip
+    return subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, preexec_fn=default_sigint
+    )
+
+
+Outcome = tuple[int, str, float, bool]
+"""Exit status, stderr, seconds (see each runner) and whether the SIGINT was sent."""
+
+
+def interrupt_after(process: subprocess.Popen, after_s: float | None) -> bool:
+    """Send ``process`` one SIGINT after ``after_s`` seconds unless it ended before (None:
+    none); whether it was sent."""
+    if after_s is None:
+        return False
+    try:
+        process.wait(timeout=after_s)
+    except subprocess.TimeoutExpired:
+        process.send_signal(signal.SIGINT)
+        return True
+    return False
+
+
+def run(photos: Path, out: Path, after_s: float | None) -> Outcome:
+    """hkpd-predict on ``photos``, SIGINT after ``after_s`` (None: none); the seconds are the
+    run's."""
+    began = time.perf_counter()
+    process = start(photos, out)
+    sent = interrupt_after(process, after_s)
     _, err = process.communicate(timeout=300)
-    return process.returncode, err.decode(errors="replace"), time.perf_counter() - start
+    return process.returncode, err.decode(errors="replace"), time.perf_counter() - began, sent
+
+
+def run_to_the_end(photos: Path, out: Path, after_s: float | None) -> Outcome:
+    """hkpd-predict on ``photos``, SIGINT ``after_s`` after the progress bar is full (None:
+    none); the seconds are from the full bar to the process's end."""
+    process = start(photos, out)
+    seen = b""
+    while ALL_DONE not in seen and process.poll() is None:
+        seen += os.read(process.stderr.fileno(), 4096)
+    full = time.perf_counter()
+    sent = interrupt_after(process, after_s)
+    _, err = process.communicate(timeout=300)
+    stderr = (seen + err).decode(errors="replace")
+    return process.returncode, stderr, time.perf_counter() - full, sent
 
 
 def problems(status: int, stderr: str, out: Path, interrupted: bool) -> list[str]:
@@ -70,38 +130,67 @@ def problems(status: int, stderr: str, out: Path, interrupted: bool) -> list[str
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--late-runs", type=int, default=20)
     parser.add_argument("--photos", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--entry", choices=("run_program", "run_command"), default="run_program")
     args = parser.parse_args()
+    ENTRY[0] = args.entry
     rng = np.random.default_rng(args.seed)
     with tempfile.TemporaryDirectory() as temp:
         photos = Path(temp) / "photos"
         photos.mkdir()
         for index in range(args.photos):
             shutil.copy(shipped_photo(), photos / f"photo_{index}.jpg")
-        status, stderr, full_s = run(photos, Path(temp) / "full", None)
+        status, stderr, full_s, _ = run(photos, Path(temp) / "full", None)
+        assert status == 0, stderr
+        status, stderr, end_s, _ = run_to_the_end(photos, Path(temp) / "full_end", None)
         assert status == 0, stderr
         print(f"# hkpd-predict Ctrl-C benchmark — {time.strftime('%Y-%m-%d %H:%M %Z')}")
         load = os.getloadavg()[0]
         print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, load average {load:.1f}; "
-              f"{args.photos} photos, uninterrupted {full_s:.1f} s")  # fmt: skip
+              f"{args.photos} photos, uninterrupted {full_s:.1f} s, of which {end_s:.3f} s "
+              f"from the full progress bar to the end; entry point {args.entry}")  # fmt: skip
+        failures = table(
+            "whole run", args.runs, lambda: float(rng.uniform(0.2, full_s)), photos, temp, run
+        )
+        failures += table(
+            "after the last photo", args.late_runs, lambda: float(rng.uniform(0.0, end_s)),
+            photos, temp, run_to_the_end,
+        )  # fmt: skip
         print()
-        print("| run | SIGINT at s | exit | stopped after s | folders left | problems |")
-        print("|---:|---:|---:|---:|---:|---|")
-        failures = 0
-        for index in range(args.runs):
-            out = Path(temp) / f"out_{index}"
-            after_s = float(rng.uniform(0.2, full_s))
-            status, stderr, seconds = run(photos, out, after_s)
-            finished = seconds < after_s  # it ended before the signal was due
-            found = problems(status, stderr, out, interrupted=not finished)
-            failures += bool(found)
-            left = len(list(out.iterdir())) if out.exists() else 0
-            print(f"| {index} | {after_s:.1f} | {status} | {seconds:.1f} | {left} | "
-                  f"{', '.join(found) or ('none (finished first)' if finished else 'none')} |",
-                  flush=True)  # fmt: skip
-        print()
-        print(f"{args.runs - failures} of {args.runs} runs as they should be")
+        total = args.runs + args.late_runs
+        print(f"{total - failures} of {total} runs as they should be")
+
+
+def table(
+    title: str,
+    runs: int,
+    draw: Callable[[], float],
+    photos: Path,
+    temp: str,
+    runner: Callable[[Path, Path, float | None], Outcome],
+) -> int:
+    """``runs`` runs of ``runner`` with a SIGINT at ``draw()`` seconds, one table row each;
+    returns how many went wrong."""
+    print()
+    print(f"## SIGINT at a random moment: {title}")
+    print()
+    print("| run | SIGINT at s | exit | stopped after s | folders left | problems |")
+    print("|---:|---:|---:|---:|---:|---|")
+    failures = 0
+    for index in range(runs):
+        out = Path(temp) / f"out_{title.split()[0]}_{index}"
+        after_s = draw()
+        status, stderr, seconds, sent = runner(photos, out, after_s)
+        finished = not sent  # it ended before the signal was due
+        found = problems(status, stderr, out, interrupted=not finished)
+        failures += bool(found)
+        left = len(list(out.iterdir())) if out.exists() else 0
+        print(f"| {index} | {after_s:.3f} | {status} | {seconds:.3f} | {left} | "
+              f"{', '.join(found) or ('none (finished first)' if finished else 'none')} |",
+              flush=True)  # fmt: skip
+    return failures
 
 
 if __name__ == "__main__":

@@ -1,19 +1,25 @@
 """Ctrl-C in the command-line programs: at any moment one line, exit status 130, never swallowed.
 
-Two things stand in the way of that in a plain ``main()``:
+Three things stand in the way of that in a plain ``main()``:
 
 - **Code that swallows it.** ``import trimesh`` wraps optional imports in
   ``except BaseException``, so a KeyboardInterrupt raised inside one is caught and the program
   runs on as if nothing happened (2 of 13 tries in issue 44; other library code can do the
-  same). So the programs start in :func:`run_command` (their console-script entry points are
-  below), which installs a SIGINT handler that *remembers* the Ctrl-C before raising it; after
-  each heavy import, and at the commands' safe points (before each photo, before a folder is
-  committed, before a report is written), :func:`raise_if_interrupted` raises a swallowed one
-  again, and a command that returns normally after one still ends in status 130.
+  same). So the programs start in :func:`run_command` (through :func:`run_program`, their
+  console-script entry points are below), which installs a SIGINT handler that *remembers*
+  the Ctrl-C before raising it; after each heavy import, and at the commands' safe points
+  (before each photo, before a folder is committed, before a report is written),
+  :func:`raise_if_interrupted` raises a swallowed one again, and a command that returns
+  normally after one still ends in status 130.
 - **The imports before** ``main()``: the command's module pulls in torch, OpenCV and trimesh
   before ``main`` runs, so a Ctrl-C there would be a traceback. :func:`run_command` imports the
   command itself and turns a KeyboardInterrupt from anywhere into ``PROGRAM: interrupted`` on
   stderr and status 130.
+- **Python's own shutdown.** After ``main()`` returns, Python 3.11 gives SIGINT its default
+  action back early in its shutdown, before it tears the modules down (about 0.6 s for
+  ``hkpd-predict`` with torch and OpenCV loaded), so a Ctrl-C then killed the process by the
+  signal (status -2, no line). The programs' entry points run :func:`run_program`, which keeps
+  noting Ctrl-C until its last exit callback and ends the process there with ``os._exit``.
 
 :func:`deferred_interrupts` holds a Ctrl-C back for the few statements that must not be cut in
 half (renaming a finished folder into place, removing a partial one, writing a report).
@@ -25,12 +31,16 @@ This module imports nothing of hkpd; the commands are imported by name.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import importlib
+import os
 import signal
 import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from types import FrameType, ModuleType
 
 INTERRUPTED_STATUS = 130
@@ -57,6 +67,22 @@ _received = threading.Event()
 """Set by every SIGINT that reached a handler of this module (see :func:`raise_if_interrupted`)."""
 
 
+@dataclass
+class _ProgramState:
+    """What :func:`run_program`'s exit callback needs to end the process."""
+
+    program: str = ""
+    finished: bool = False
+    """The command has returned (or was stopped): a Ctrl-C from now on is only noted."""
+    status: int | None = None
+    """The command's exit status; None until it is known."""
+    said: bool = False
+    """An "interrupted" line was printed (by :func:`interrupted`)."""
+
+
+_program = _ProgramState()
+
+
 def raise_if_interrupted() -> None:
     """Raise KeyboardInterrupt if a Ctrl-C arrived since :func:`run_command` started (one that
     some library code caught and dropped); a no-op when the command runs without it."""
@@ -76,6 +102,8 @@ def _remember_and_raise(signum: int, frame: FrameType | None) -> None:
     traceback and dropped, and one raised half-way through the machinery can leave a module
     half-registered."""
     _received.set()
+    if _program.finished:
+        return  # the program is ending: its exit callback says it and sets the status
     if frame is not None and frame.f_code.co_filename.startswith(IMPORT_MACHINERY):
         return
     raise KeyboardInterrupt
@@ -107,6 +135,7 @@ def interrupted(program: str, detail: str = "") -> int:
     """Print ``PROGRAM: interrupted<detail>`` (``detail`` brings its own leading "; " or " ")
     on stderr and return :data:`INTERRUPTED_STATUS`."""
     print(f"{program}: interrupted{detail}", file=sys.stderr, flush=True)
+    _program.said = True
     return INTERRUPTED_STATUS
 
 
@@ -126,10 +155,23 @@ def _import_or_interrupted(name: str) -> ModuleType:
 
 def run_command(program: str, argv: Sequence[str] | None = None) -> int:
     """Import ``program``'s module, run its ``main(argv)``; a Ctrl-C at any moment (also one
-    that some library swallowed) gives one line and :data:`INTERRUPTED_STATUS`."""
+    that some library swallowed) gives one line and :data:`INTERRUPTED_STATUS`. The SIGINT
+    handler is put back as it was when it returns (for callers in Python; a program's entry
+    point is :func:`run_program`)."""
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, _remember_and_raise) if main_thread else None
     _received.clear()
+    try:
+        return _run(program, argv)
+    finally:
+        _received.clear()
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _run(program: str, argv: Sequence[str] | None) -> int:
+    """The heavy imports, ``program``'s module and its ``main(argv)``; a KeyboardInterrupt from
+    any of them is one line and :data:`INTERRUPTED_STATUS`."""
     try:
         for name in HEAVY_IMPORTS:
             if name not in LAZY_IMPORTS.get(program, ()):
@@ -142,27 +184,82 @@ def run_command(program: str, argv: Sequence[str] | None = None) -> int:
         return status
     except KeyboardInterrupt:
         return interrupted(program)
+
+
+def run_program(program: str, argv: Sequence[str] | None = None) -> int:
+    """The entry point of the process ``program``: :func:`run_command`, with a Ctrl-C noted
+    until the process is gone, so that one at any moment, Python's shutdown included, ends
+    in one line and :data:`INTERRUPTED_STATUS`.
+
+    Registers :func:`_exit_process` as an exit callback: it runs after the non-daemon threads
+    are joined and after the callbacks registered later (the libraries' own), flushes the
+    standard streams and ends the process with ``os._exit`` and the command's status, or 130
+    (and the line, once) when a Ctrl-C came after the command returned. Python's teardown of
+    the modules is skipped: it only frees memory, and the commands close their files in
+    ``with`` blocks. Only for a process's entry point: called in a Python session, it ends that
+    session's interpreter with the command's status. Off the main thread it is
+    :func:`run_command`.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return run_command(program, argv)
+    _program.program = program
+    atexit.register(_exit_process)
+    signal.signal(signal.SIGINT, _remember_and_raise)
+    _received.clear()
+    try:
+        status = _run(program, argv)
+    except KeyboardInterrupt:  # landed as main() returned; said at exit
+        status = INTERRUPTED_STATUS
+    except SystemExit as exiting:  # argparse's --help and usage errors
+        _program.finished = True
+        _program.status = _exit_code(exiting.code)
+        raise
     finally:
-        _received.clear()
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+        _program.finished = True
+    _program.status = status
+    return status
+
+
+def _exit_code(code: object) -> int:
+    """The exit status Python gives ``SystemExit(code)``: 0 for None, the int, else 1 (the
+    message is printed by Python)."""
+    if code is None:
+        return 0
+    return code if isinstance(code, int) else 1
+
+
+def _exit_process() -> None:
+    """:func:`run_program`'s exit callback: flush, say a Ctrl-C that came after the command
+    returned, and end the process with its status (130 after a Ctrl-C). Does nothing when
+    the command's status is unknown (an exception escaped: Python reports it as usual)."""
+    status = _program.status
+    if status is None:
+        return
+    if _received.is_set() and not _program.said:
+        interrupted(_program.program, " after the work was done")
+    if _received.is_set():
+        status = INTERRUPTED_STATUS
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError, AttributeError):  # closed, broken, None
+            stream.flush()
+    os._exit(status)
 
 
 def predict() -> int:
     """The ``hkpd-predict`` entry point."""
-    return run_command("hkpd-predict")
+    return run_program("hkpd-predict")
 
 
 def evaluate() -> int:
     """The ``hkpd-eval`` entry point."""
-    return run_command("hkpd-eval")
+    return run_program("hkpd-eval")
 
 
 def train() -> int:
     """The ``hkpd-train`` entry point."""
-    return run_command("hkpd-train")
+    return run_program("hkpd-train")
 
 
 def explore() -> int:
     """The ``hkpd-explore`` entry point."""
-    return run_command("hkpd-explore")
+    return run_program("hkpd-explore")

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -18,11 +19,29 @@ from hkpd import interrupts
 from hkpd.interrupts import INTERRUPTED_STATUS, deferred_interrupts
 
 LAUNCH = (
-    "import sys; from hkpd.interrupts import run_command; "
-    "sys.exit(run_command(sys.argv[1], sys.argv[2:]))"
+    "import sys; from hkpd.interrupts import run_program; "
+    "sys.exit(run_program(sys.argv[1], sys.argv[2:]))"
 )
 """What the installed ``hkpd-predict`` (``hkpd.interrupts:predict``) runs, with the program
 name as the first argument."""
+
+
+def default_sigint() -> None:
+    """Popen's ``preexec_fn``: the child starts with SIGINT's default action, as a program
+    started from a terminal does, whatever this process has (pytest started with SIGINT
+    ignored, by ``nohup ... &`` or a script's ``&``, passes the ignoring on to its children)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@pytest.fixture(autouse=True)
+def python_sigint_handler() -> Iterator[None]:
+    """Python's own SIGINT handler during each test (pytest started with SIGINT ignored has
+    none), and pytest's own again afterwards."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def swallowing_import() -> None:
@@ -132,15 +151,15 @@ def interrupt_predict(photos: Path, out: Path, when: str) -> subprocess.Complete
     command = [sys.executable, "-c", LAUNCH, "hkpd-predict", str(photos), "--out", str(out),
                "--samples", "1", "--uncertainty-samples", "10"]  # fmt: skip
     process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ}
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=default_sigint
     )
+    seen = b""  # what was read while waiting (kept in the result for the failure messages)
     try:
         if when == "import":
             time.sleep(0.3)
         else:
             stream = process.stderr if when == "loaded" else process.stdout
             wanted = b"hkpd-predict:" if when == "loaded" else b"person at bbox"
-            seen = b""
             while wanted not in seen and process.poll() is None:
                 seen += os.read(stream.fileno(), 256)
         process.send_signal(signal.SIGINT)
@@ -148,6 +167,10 @@ def interrupt_predict(photos: Path, out: Path, when: str) -> subprocess.Complete
     finally:
         if process.poll() is None:
             process.kill()
+    if when == "loaded":
+        err_bytes = seen + err_bytes
+    elif when == "between":
+        out_bytes = seen + out_bytes
     return subprocess.CompletedProcess(command, process.returncode, out_bytes, err_bytes)
 
 
@@ -184,7 +207,7 @@ def test_ctrl_c_while_the_other_programs_start_is_one_line_and_130(tmp_path, pro
         arguments = [*arguments, "--out", str(tmp_path / "run")]
     process = subprocess.Popen(
         [sys.executable, "-c", LAUNCH, program, *arguments],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path, preexec_fn=default_sigint,
     )  # fmt: skip
     try:
         time.sleep(0.5)  # in the imports (torch alone takes longer)
@@ -197,3 +220,66 @@ def test_ctrl_c_while_the_other_programs_start_is_one_line_and_130(tmp_path, pro
     assert process.returncode == INTERRUPTED_STATUS, stderr
     assert stderr.strip() == f"{program}: interrupted" and "Traceback" not in stderr
     assert list(tmp_path.iterdir()) == []
+
+
+LATE_COMMAND = """
+import sys, threading, time
+
+def main(argv):
+    behaviour = argv[0]
+    print("work done")  # not flushed: the exit must flush it
+    if behaviour == "late":  # Python's shutdown waits for this thread; SIGINT meanwhile
+        threading.Thread(target=time.sleep, args=(1.0,)).start()
+        print("ready", file=sys.stderr, flush=True)
+    if behaviour == "usage":
+        raise SystemExit(2)
+    return 3 if behaviour == "three" else 0
+"""
+"""A command for :func:`run_program` that returns at once (and, for ``late``, leaves Python's
+shutdown a non-daemon thread to wait for)."""
+
+
+def run_late_command(tmp_path: Path, behaviour: str) -> subprocess.CompletedProcess:
+    """Run :data:`LATE_COMMAND` as the program ``hkpd-late`` through :func:`run_program` (no
+    heavy imports); for ``late``, send one SIGINT once its ``main`` has returned."""
+    (tmp_path / "hkpd_late_command.py").write_text(LATE_COMMAND)
+    launch = (
+        "import sys; from hkpd import interrupts; interrupts.HEAVY_IMPORTS = (); "
+        "interrupts.COMMANDS['hkpd-late'] = 'hkpd_late_command'; "
+        "sys.exit(interrupts.run_program('hkpd-late', sys.argv[1:]))"
+    )
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    process = subprocess.Popen(
+        [sys.executable, "-c", launch, behaviour], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        env=env, preexec_fn=default_sigint,
+    )  # fmt: skip
+    try:
+        if behaviour == "late":
+            seen = b""
+            while b"ready" not in seen and process.poll() is None:
+                seen += os.read(process.stderr.fileno(), 256)
+            time.sleep(0.2)  # main() has returned: Python's shutdown joins the thread
+            process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    err = (seen if behaviour == "late" else b"") + err
+    return subprocess.CompletedProcess(launch, process.returncode, out, err)
+
+
+def test_a_ctrl_c_during_pythons_shutdown_is_one_line_and_130(tmp_path) -> None:
+    """Python 3.11 gives SIGINT its default action back early in its shutdown: a Ctrl-C in
+    hkpd-predict's last ~0.6 s (all photos done) ended the process by the signal (status -2, no
+    line). run_program notes it until the process ends."""
+    result = run_late_command(tmp_path, "late")
+    assert result.returncode == INTERRUPTED_STATUS, result.stderr
+    assert result.stderr.decode() == "ready\nhkpd-late: interrupted after the work was done\n"
+    assert result.stdout.decode() == "work done\n"
+
+
+@pytest.mark.parametrize("behaviour, status", [("three", 3), ("usage", 2), ("zero", 0)])
+def test_run_program_ends_with_the_commands_status(tmp_path, behaviour, status) -> None:
+    result = run_late_command(tmp_path, behaviour)
+    assert result.returncode == status, result.stderr
+    assert result.stdout.decode() == "work done\n" and result.stderr == b""
