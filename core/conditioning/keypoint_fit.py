@@ -103,6 +103,20 @@ class KeypointFit:
     shape_covariance: torch.Tensor | None = None
     log_evidence: float = math.nan
 
+    def __repr__(self) -> str:
+        """One line of at most 200 characters: succeeded or why not, the winning start, the
+        terms and the solver's figures (never the tensors: the default repr was 5.7 kB)."""
+        if self.conditioned is None:
+            reason = self.reason if len(self.reason) <= 120 else self.reason[:119] + "…"
+            return f"KeypointFit(failed: {reason!r}, evidence_count={self.evidence_count})"
+        text = (
+            f"KeypointFit(succeeded, start={self.start}{', turned' if self.turned else ''}, "
+            f"terms={self.terms}, evidence_count={self.evidence_count}, "
+            f"iterations={self.iterations}, converged={self.converged}, cost={self.cost:.5g}, "
+            f"seconds={self.seconds:.3f})"
+        )
+        return text if len(text) <= 200 else text[:198] + "…)"
+
     @property
     def succeeded(self) -> bool:
         return self.conditioned is not None

@@ -44,6 +44,20 @@ class BodyDistribution:
     global_orient: torch.Tensor
     camera: torch.Tensor
 
+    def __repr__(self) -> str:
+        """One line: the batch shape, the shapes of ``F`` and ``shape_mean``, the dtype and
+        device (never the numbers: the default repr of an unbatched record was 3.9 kB)."""
+        shapes = ", ".join(
+            f"{name}={tuple(getattr(tensor, 'shape', ()))}"
+            for name, tensor in zip(("F", "shape_mean"), (self.F, self.shape_mean), strict=True)
+        )
+        batch = tuple(getattr(self.F, "shape", ())[:-3])
+        dtype = str(getattr(self.F, "dtype", "?")).removeprefix("torch.")
+        return (
+            f"BodyDistribution(batch_shape={batch}, {shapes}, {dtype}, "
+            f"{getattr(self.F, 'device', '?')})"
+        )
+
     @property
     def batch_size(self) -> int:
         """Size of the first batch dimension (the record must be batched)."""

@@ -65,6 +65,15 @@ class ImageInputError(ValueError):
     """The input is not an image the predictor can use; the message says why and what to do."""
 
 
+SOURCE_SHOWN = 60
+"""Characters of a photo's source (its end: the file name) that the records' reprs show."""
+
+
+def short_source(source: str, limit: int = SOURCE_SHOWN) -> str:
+    """``source`` cut to its last ``limit`` characters (``…`` in front when cut), for a repr."""
+    return source if len(source) <= limit else "…" + source[-(limit - 1) :]
+
+
 @dataclass(frozen=True, eq=False)
 class LoadedImage:
     """An RGB photo ready for detection, plus the map back to the original photo's pixels.
@@ -81,6 +90,13 @@ class LoadedImage:
     pixels: np.ndarray
     original_size: tuple[int, int]
     source: str
+
+    def __repr__(self) -> str:
+        """One line of at most 200 characters: the sizes and the source's end (never the
+        pixels)."""
+        width, height = self.size
+        original = "" if not self.was_downscaled else " of {}x{}".format(*self.original_size)
+        return f"LoadedImage({width}x{height} RGB{original}, source={short_source(self.source)!r})"
 
     @property
     def size(self) -> tuple[int, int]:

@@ -22,7 +22,7 @@ from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.detection.keypoint_detector import KeypointDetection, KeypointDetector
 from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.evidence_rule import NO_OCCLUDERS, evidence_frame, evidence_mask
-from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image
+from hkpd.prediction.image_input import MAX_IMAGE_SIDE, LoadedImage, load_image, short_source
 from hkpd.prediction.occluders import OccluderBoxes, Occluders, apply_occluders
 from hkpd.proxy import DEFAULT_IMAGE_PROXY, build_proxy
 
@@ -68,6 +68,20 @@ class NetworkInput:
     crop_silhouette: np.ndarray | None = None
     person_mask: np.ndarray | None = None
     person_mask_known: np.ndarray | None = None
+
+    def __repr__(self) -> str:
+        """One line of at most 200 characters: the proxy's shape, the crop, the evidence, the
+        occluders, the person mask and the photo (never the arrays: the default was 10 kB)."""
+        (u, v), side = self.crop.centre, self.crop.side
+        evidence = int(np.count_nonzero(self.evidence))
+        mask = "person mask" if self.person_mask is not None else "no person mask"
+        width, height = self.image.original_size
+        return (
+            f"NetworkInput(proxy={tuple(self.proxy.shape)}, crop {side:.0f} px at ({u:.0f}, "
+            f"{v:.0f}), evidence {evidence}/{len(self.evidence)} keypoints, "
+            f"{len(self.occluders)} occluders, {mask}, photo {width}x{height} "
+            f"{short_source(self.image.source, 40)!r})"
+        )
 
     @property
     def box_keypoints_crop(self) -> np.ndarray:

@@ -62,6 +62,15 @@ class Occluders:
             return boxes
         return cls(np.zeros((0, 4)) if boxes is None else boxes)
 
+    def __repr__(self) -> str:
+        """One line of at most 200 characters: the count and the first boxes (pixels)."""
+        shown = ", ".join(
+            "(" + ", ".join(f"{value:.5g}" for value in box) + ")" for box in self.boxes[:3]
+        )
+        count = len(self.boxes)
+        listed = (": " + shown + (", …" if count > 3 else "")) if count else ""
+        return f"Occluders({count} box{'' if count == 1 else 'es'}{listed})"
+
     def __len__(self) -> int:
         return int(self.boxes.shape[0])
 

@@ -80,6 +80,16 @@ class CombinedShape:
     uncertainty_samples: int
     faces: torch.Tensor
 
+    def __repr__(self) -> str:
+        """One line: how and from how many photos, the sizes and the spreads (never the
+        tensors)."""
+        return (
+            f"CombinedShape(method={self.method!r}, count={self.count}, "
+            f"betas={tuple(self.betas_mean.shape)}, mean_std={self.mean_std:.3f}, "
+            f"vertices={tuple(self.tpose_vertices.shape)}, "
+            f"mean_uncertainty_m={float(self.vertex_uncertainty.mean()):.4f})"
+        )
+
     @property
     def mean_std(self) -> float:
         """The mean of the ``K`` combined standard deviations (one number for tables)."""

@@ -45,6 +45,7 @@ from hkpd.prediction.detection.boxes import (
 from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.detection.warp import Region
 from hkpd.prediction.image_input import LoadedImage, load_image
+from hkpd.proxy import CONFIDENCE_THRESHOLD
 
 __all__ = [
     "COCO_FROM_BLAZEPOSE",
@@ -126,6 +127,20 @@ class KeypointDetection:
     detector_score: float | None = None
     presence: float | None = None
     person_mask: PersonMask | None = None
+
+    def __repr__(self) -> str:
+        """One line of at most 200 characters: how many keypoints are confident, the person's
+        box, the photo's size, the scores (never the arrays)."""
+        confident = int(np.count_nonzero(np.asarray(self.confidences) >= CONFIDENCE_THRESHOLD))
+        box = ", ".join(f"{value:.0f}" for value in np.asarray(self.person_box).ravel()[:4])
+        score = "" if self.detector_score is None else f", detector_score={self.detector_score:.2f}"
+        mask = "" if self.person_mask is None else ", person mask"
+        return (
+            f"KeypointDetection({len(self.keypoints)} keypoints, {confident} with confidence >= "
+            f"{CONFIDENCE_THRESHOLD}, person_box=({box}), photo "
+            "{}x{}".format(*self.image_size)
+            + f"{score}{mask})"
+        )
 
 
 class PoseRunner(Protocol):

@@ -38,6 +38,16 @@ class PersonMask:
     to_photo: np.ndarray
     image_size: tuple[int, int]
 
+    def __repr__(self) -> str:
+        """One line: the grid, the photo's size and how much of the grid is the person (never
+        the probabilities)."""
+        rows, cols = np.shape(self.probability)[:2]
+        person = float(np.mean(np.asarray(self.probability) >= 0.5)) if rows * cols else 0.0
+        return (
+            f"PersonMask({rows}x{cols} grid, {person:.0%} person (p >= 0.5), photo "
+            "{}x{})".format(*self.image_size)
+        )
+
     def moved(self, matrix: np.ndarray, image_size: tuple[int, int]) -> PersonMask:
         """The same mask in another photo frame: ``matrix`` ``(2, 3)`` maps this mask's photo
         pixels to the new frame's (e.g. working image -> original photo)."""
