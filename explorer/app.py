@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import cast
 
 import numpy as np
@@ -25,8 +25,12 @@ import torch
 import viser
 
 from hkpd.distributions import MatrixFisher
+from hkpd.explorer.app_keeping import KeepingActions
+from hkpd.explorer.caption_numbers import numbers_sentence
 from hkpd.explorer.change_baseline import BaselineCache, BaselineKey
 from hkpd.explorer.colour_map import HeatmapScale
+from hkpd.explorer.compare import Comparison
+from hkpd.explorer.compare_scene import COMPARE_HEAT_OFFSET, CompareColumns
 from hkpd.explorer.export import meshes_file, png_bytes
 from hkpd.explorer.html_page import SceneCaption, describe_scene, scene_page
 from hkpd.explorer.panels import build_panels
@@ -45,6 +49,8 @@ from hkpd.explorer.provider import (
     PredictionResult,
 )
 from hkpd.explorer.scene import COMBINED_OFFSET, HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
+from hkpd.explorer.scene_file import PhotoRef
+from hkpd.explorer.scene_keeping import SceneKeeper
 from hkpd.explorer.state import (
     MAX_OCCLUDERS,
     MAX_SAME_PERSON_PHOTOS,
@@ -95,8 +101,8 @@ class Timings:
     draw: float = 0.0
 
 
-class ExplorerApp:
-    """The running explorer.
+class ExplorerApp(KeepingActions):
+    """The running explorer (its scene and compare actions: :mod:`hkpd.explorer.app_keeping`).
 
     Args:
         provider: turns a photo and occluders into a posterior (see :mod:`provider`).
@@ -165,6 +171,9 @@ class ExplorerApp:
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         self.scene = ExplorerScene(self.server)
+        self.compare = Comparison(self._provider_predict)
+        self.compare_columns = CompareColumns(self.server)
+        self.keeper = SceneKeeper(self)
         self.panels = build_panels(self.server, self)
         self.panels.photo.silhouette.visible = self.fits_person_mask
         self.server.scene.on_rect_select(modifier="shift")(self._on_rect_select)
@@ -228,8 +237,9 @@ class ExplorerApp:
             return None
         snapshot = self.state.snapshot()
         with self._lock:
-            photo = self._photo_name
-        return describe_scene(
+            photo, view = self._photo_name, self._view
+        setting, view_b = self.compare.setting, self.compare.view
+        caption = describe_scene(
             result.posterior,
             photo=photo,
             model=self.model_name,
@@ -237,15 +247,22 @@ class ExplorerApp:
             num_samples=snapshot.num_samples,
             num_displayed=snapshot.num_displayed if self.scene.show_samples else 0,
             concentration_factors=snapshot.concentration_factors,
+            numbers="" if view is None else numbers_sentence(view, view_b),
+            colouring=self.scene.heatmap.kind,
+            compare="" if setting is None or view_b is None else setting.label,
         )
+        return replace(caption, scene_source=self.keeper.source)
 
     def page_html(self) -> str:
-        """The current scene as one self-contained HTML page with its caption
-        (:mod:`hkpd.explorer.html_page`)."""
+        """The current scene as one self-contained HTML page with its caption and the scene
+        file it shows embedded (:mod:`hkpd.explorer.html_page`); the titles of the live app
+        ("shift+drag to hide a part") are left out of it."""
         caption = self.page_caption()
         if caption is None:
             raise RuntimeError("nothing to save yet: the first prediction has not finished")
-        return scene_page(self.server, caption)
+        scene = None if self.keeper.photo is None else self.keeper.scene().to_json()
+        with self.scene.static_titles():
+            return scene_page(self.server, caption, scene)
 
     def wait_idle(self, timeout: float = 30.0) -> bool:
         """Block until no work is pending (for tests and benchmarks)."""
@@ -393,6 +410,8 @@ class ExplorerApp:
         if rescaled:
             scene.heatmap = scale
             scene.show_legend()
+            if scene.placement is not None:  # the column titles follow the colouring
+                scene.show_titles(scene.titles_top)
             if scene.combined_shown:  # recolour the combined shape (and its colour bar)
                 self.worker.submit("same_person", self._same_person_job)
         self.redraw()
@@ -405,7 +424,8 @@ class ExplorerApp:
         except UploadError as error:
             self._notify(client, "Photo not loaded", str(error), error=True)
             return
-        self.worker.submit("image", lambda: self._image_job(image, name, client))
+        photo = PhotoRef.of_bytes(content, name)
+        self.worker.submit("image", lambda: self._image_job(image, name, client, photo))
 
     def add_same_person_upload(
         self, name: str, content: bytes, client: viser.ClientHandle | None
@@ -530,6 +550,8 @@ class ExplorerApp:
             self._placed_token = token
             self._photo_is_plain = self._photo_is_plain or new_photo
         self.scene.clear_bodies()
+        self.compare.clear()
+        self.compare_columns.clear()
         if new_photo:
             self._place_photo(image, plain_placement(image.shape[1], image.shape[0]), token)
         self.scene.show_occluders(self.state.snapshot().occluders)
@@ -555,7 +577,13 @@ class ExplorerApp:
             people_job = lambda: self._find_people(image, token)  # noqa: E731
             self.worker.submit("people", people_job, delay_s=PEOPLE_SEARCH_DELAY_S)
 
-    def _image_job(self, image: np.ndarray, name: str, client: viser.ClientHandle | None) -> None:
+    def _image_job(
+        self,
+        image: np.ndarray,
+        name: str,
+        client: viser.ClientHandle | None,
+        photo: PhotoRef | None = None,
+    ) -> None:
         started = time.perf_counter()
         snapshot = self.state.snapshot()
         result: PredictionResult | None = None
@@ -572,6 +600,8 @@ class ExplorerApp:
             self._image_token += 1
             token = self._image_token
             self.state.set_image(image.shape[1], image.shape[0])
+        self.keeper.photo, self.keeper.source = photo, ""
+        self.keeper.forget_history()
         snapshot = self.state.snapshot()
         self.panels.photo.occluders.show(snapshot.occluders, snapshot.image_size)
         self.scene.show_person_box(None)
@@ -580,6 +610,9 @@ class ExplorerApp:
             self._no_person(image, token, client)
             return
         self._show_prediction(result, image, token, _baseline_key(token, None, snapshot))
+        kept = self.keeper.differences()  # concentrations and display settings stay: say so
+        if kept:
+            self._notify(client, "Settings kept from the last photo", kept)
         self._notify(client, "Photo loaded", name)
 
     def _show_prediction(
@@ -622,6 +655,7 @@ class ExplorerApp:
         self.panels.teaching.show_shape_basis(
             posterior, result.proxy, None if overlay is None else overlay.rgba
         )
+        self.compare.predict(image, self.state.snapshot(), result)
         self._sample_job()
         if self.state.snapshot().same_person or self.scene.combined_shown:
             self._show_combined()
@@ -709,6 +743,7 @@ class ExplorerApp:
         self.timings.sample, self.timings.draw = drawn - started, done - drawn
         with self._lock:
             self._view = view
+        self._show_compare(snapshot, view)
         index = list(snapshot.concentration_factors)
         joint = body_joint_index(snapshot.selected_joint)
         joint_factor = index[joint]
@@ -780,7 +815,10 @@ class ExplorerApp:
         """Frame the photo, the bodies and the heatmap for new tabs and every open tab."""
         with self._lock:
             self._framed = placement
-        position, look_at = framing(placement, ASSUMED_ASPECT, combined=self.scene.combined_shown)
+        position, look_at = framing(
+            placement, ASSUMED_ASPECT, combined=self.scene.combined_shown,
+            compare=self.compare_columns.shown,
+        )  # fmt: skip
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
         for client in self.server.get_clients().values():
@@ -804,8 +842,9 @@ class ExplorerApp:
                 else:
                     time.sleep(0.05)
         position, look_at = framing(
-            placement, aspect, float(np.clip(free, 0.5, 1.0)), self.scene.combined_shown
-        )
+            placement, aspect, float(np.clip(free, 0.5, 1.0)), self.scene.combined_shown,
+            self.compare_columns.shown,
+        )  # fmt: skip
         client.camera.position = position
         client.camera.look_at = look_at
 
@@ -832,6 +871,7 @@ def framing(
     aspect: float,
     free_fraction: float = FREE_CANVAS_FRACTION,
     combined: bool = False,
+    compare: bool = False,
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Camera ``(position, look_at)`` showing photo, bodies and heatmap left of the panel.
 
@@ -840,9 +880,12 @@ def framing(
         aspect: canvas width / height.
         free_fraction: part of the canvas width left of the floating panel.
         combined: also show the combined-shape body of the same person's photos.
+        compare: also show the compare columns (B).
     """
     left = placement.centre[0] - placement.width_m / 2 - 0.1
     right = (COMBINED_OFFSET if combined else HEATMAP_OFFSET) + BODY_HALF_SPAN_M
+    if compare:
+        right = max(right, COMPARE_HEAT_OFFSET + BODY_HALF_SPAN_M)
     top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.25
     bottom = min(placement.centre[1] - placement.height_m / 2, -1.45) - 0.1
     tan_v = math.tan(math.radians(CAMERA_FOV_DEG) / 2)

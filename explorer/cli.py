@@ -43,6 +43,7 @@ from hkpd.interrupts import interrupted, raise_if_interrupted
 if TYPE_CHECKING:
     from hkpd.explorer.app import ExplorerApp
     from hkpd.explorer.provider import PosteriorProvider
+    from hkpd.explorer.scene_file import SceneFile
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -92,8 +93,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="write the first view as one self-contained HTML page (no server) and exit",
     )
     parser.add_argument(
-        "--force", action="store_true", help="with --export-html: replace an existing OUT.html"
+        "--force",
+        action="store_true",
+        help="with --export-html or --save-scene: replace an existing file",
     )
+    _add_scene_arguments(parser)
     parser.add_argument(
         "--port", type=int, default=8080, help="TCP port (default 8080; 0: any free port)"
     )
@@ -115,6 +119,41 @@ def build_parser() -> argparse.ArgumentParser:
         "loading the trained Predictor (used by the test suite)",
     )
     return parser
+
+
+def _add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    """The scene options: keep and reopen a scene, compare, and the settings a scene holds."""
+    parser.add_argument(
+        "--save-scene", metavar="FILE.json", default=None,
+        help="write the scene (photo by path and checksum, boxes, settings) to FILE.json and "
+        "exit without serving; reopen it with --scene",
+    )  # fmt: skip
+    parser.add_argument(
+        "--embed-photo", action="store_true",
+        help="with --save-scene: put the photo itself into the scene file (base64)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--scene", metavar="FILE", default=None,
+        help="open a scene saved with --save-scene or the panel (or a page exported by hkpd)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--compare", metavar="SETTING", default=None,
+        help="a second set of columns for SETTING: network, no-occluders, "
+        "default-concentrations, or a model checkpoint's path",
+    )  # fmt: skip
+    parser.add_argument(
+        "--colouring", choices=("log", "linear", "change"), default="log",
+        help="how the uncertainty body is coloured (default log)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--concentration", nargs=2, action="append", default=[], metavar=("JOINT", "FACTOR"),
+        help="scale one joint's concentration (e.g. left_elbow 0.1); repeat for more joints",
+    )  # fmt: skip
+    parser.add_argument("--seed", type=int, default=0, help="seed of the sample draw (>= 0)")
+    parser.add_argument(
+        "--no-evidence", action="store_true",
+        help="show the network alone (no conditioning on the 2D keypoints)",
+    )  # fmt: skip
 
 
 def _load_photo(path: str | None, demo: str = "photo") -> np.ndarray:
@@ -204,6 +243,34 @@ def _load_provider_and_app(args: argparse.Namespace) -> tuple[PosteriorProvider,
     return provider, ExplorerApp
 
 
+def _scene_and_photo(
+    args: argparse.Namespace,
+    person_box: tuple[float, float, float, float] | None,
+    occluders: list[tuple[float, float, float, float]],
+    photo: bool = True,
+) -> tuple[SceneFile, np.ndarray | None, str]:
+    """The scene to show (``--scene FILE``, or the command line's settings), its photo
+    ``(H, W, 3)`` uint8 RGB (not read unless ``photo``) and the scene file's name ("" without
+    one). ``--scene`` sets ``args.model`` to the scene's model unless ``--model`` is given;
+    ``--save-scene`` writes the scene too."""
+    from hkpd.explorer.cli_scene import open_scene_file, save_scene_file, scene_from_arguments
+
+    image: np.ndarray | None = None
+    if args.scene is None:
+        scene = scene_from_arguments(args, _photo_name(args), person_box, occluders)
+        image, source = (_load_photo(args.image, args.demo) if photo else None), ""
+    else:
+        scene, image = open_scene_file(args.scene)
+        if image is None and photo:
+            image = _load_photo(None, "synthetic")
+        source = Path(args.scene).name
+        if args.model is None:
+            args.model = scene.model
+    if args.save_scene is not None:
+        save_scene_file(scene, args.save_scene, args.force)
+    return scene, image, source
+
+
 def _export_page(
     args: argparse.Namespace,
     person_box: tuple[float, float, float, float] | None,
@@ -217,7 +284,8 @@ def _export_page(
         )
     if not target.parent.is_dir():
         raise SystemExit(f"hkpd-explore: folder {target.parent} does not exist: create it first")
-    image = _load_photo(args.image, args.demo)
+    scene, image, source = _scene_and_photo(args, person_box, occluders)
+    assert image is not None
     provider = _build_provider(args)
 
     from hkpd.explorer.html_page import PageExistsError
@@ -225,10 +293,8 @@ def _export_page(
 
     try:
         page = render_scene_page(
-            provider, image, occluders=occluders, person_box=person_box,
-            photo_name=_photo_name(args), model_name=_model_name(args),
-            num_samples=args.samples, num_displayed=args.meshes,
-            silhouette=args.silhouette_evidence,
+            provider, image, photo_name=scene.photo.name, model_name=_model_name(args),
+            scene=scene, scene_source=source,
         )  # fmt: skip
         written = page.save(target, force=args.force)
     except (ValueError, RuntimeError, OSError) as error:
@@ -257,6 +323,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     person_box = _box_argument("--bbox", args.bbox) if args.bbox is not None else None
     occluders = [_box_argument("--occluder", box) for box in args.occluder]
+    if args.scene is not None and (args.image is not None or args.occluder or args.bbox):
+        raise SystemExit("hkpd-explore: give either a photo and its options or --scene FILE")
+    if args.save_scene is not None and args.export_html is None:  # a scene, no server
+        _scene_and_photo(args, person_box, occluders, photo=False)
+        return 0
     if args.export_html is not None:
         try:
             return _export_page(args, person_box, occluders)
@@ -265,7 +336,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.port != 0:
         _refuse_busy_port(args.host, args.port)
     try:
-        image = _load_photo(args.image, args.demo)
+        scene, image, source = _scene_and_photo(args, person_box, occluders)
+        assert image is not None
         provider, app_class = _load_provider_and_app(args)
         raise_if_interrupted()  # one noted inside the import machinery (hkpd.interrupts)
     except KeyboardInterrupt:
@@ -282,14 +354,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             image,
             host=args.host,
             port=args.port,
-            num_samples=args.samples,
-            num_displayed=args.meshes,
-            person_box=person_box,
-            occluders=occluders,
-            silhouette=args.silhouette_evidence,
-            photo_name=_photo_name(args),
+            num_samples=scene.display.num_samples,
+            num_displayed=scene.display.num_displayed,
+            person_box=scene.person_box,
+            occluders=scene.active_boxes,
+            evidence=scene.evidence,
+            silhouette=scene.person_mask,
+            photo_name=scene.photo.name,
             model_name=_model_name(args),
         )
+        app.keeper.photo, app.keeper.model, app.keeper.source = scene.photo, scene.model, source
+        app.keeper.apply(scene)
     except ValueError as error:
         raise SystemExit(f"hkpd-explore: {error}") from None
     if stop.is_set():  # Ctrl-C while the server was starting

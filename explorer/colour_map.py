@@ -141,12 +141,15 @@ def log_legend_image(width: int = 320, height: int = 64) -> np.ndarray:
                       width, height)  # fmt: skip
 
 
-def change_legend_image(width: int = 320, height: int = 64) -> np.ndarray:
-    """The diverging colour bar of the change colouring (ratio ticks)."""
+def change_legend_image(
+    width: int = 320,
+    height: int = 64,
+    title: str = "Uncertainty ÷ no occluders, default concentrations",
+) -> np.ndarray:
+    """The diverging colour bar of the change colouring (ratio ticks), titled ``title``."""
     top = CHANGE_MAX_RATIO
     values = (1 / top, 0.5, 1.0, 2.0, top)
     ticks = [(0.5 + 0.5 * np.log(v) / np.log(top), _ratio_text(v)) for v in values]
-    title = "Uncertainty ÷ no occluders, default concentrations"
     return _bar_image(_diverging, ticks, title, "×", width, height)
 
 

@@ -14,6 +14,7 @@ or a headless app's (:mod:`hkpd.explorer.notebook`, ``hkpd-explore --export-html
 from __future__ import annotations
 
 import html
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +22,7 @@ from pathlib import Path
 import viser
 
 from hkpd.explorer.panels.status import source_text
+from hkpd.explorer.scene_file import PAGE_SCENE_ID
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
 from hkpd.prediction.posterior import BodyPosterior
 
@@ -53,6 +55,10 @@ class SceneCaption:
         num_displayed: sample bodies drawn around the most likely one.
         concentration_factors: ``(joint name, factor)`` of every joint whose concentration was
             scaled (empty: as predicted).
+        numbers: a sentence of posterior numbers (:mod:`hkpd.explorer.caption_numbers`).
+        colouring: the uncertainty body's colouring (a key of ``COLOURINGS``).
+        compare: what posterior B is, in words, when a second set of columns shows it.
+        scene_source: the scene file the page was made from ("" when none).
     """
 
     photo: str
@@ -62,6 +68,10 @@ class SceneCaption:
     num_samples: int
     num_displayed: int
     concentration_factors: tuple[tuple[str, float], ...] = ()
+    numbers: str = ""
+    colouring: str = "log"
+    compare: str = ""
+    scene_source: str = ""
 
     @property
     def title(self) -> str:
@@ -84,13 +94,28 @@ class SceneCaption:
                 for name, factor in self.concentration_factors
             )
             hidden += f" Concentrations scaled: {scaled}."
-        return (
+        colour = (
+            "its spread over the samples divided by its spread without occluders at default "
+            "concentrations"
+            if self.colouring == "change"
+            else f"its spread over the {self.num_samples} samples"
+        )
+        compare = (
+            f" Further right, B ({self.compare}): the same columns for that setting, its "
+            "uncertainty body coloured "
+            + ("by B's spread ÷ A's." if self.colouring == "change" else "on the same scale.")
+            if self.compare
+            else ""
+        )
+        text = (
             f"Photo: {self.photo}. Model: {self.model}. {self.evidence} {hidden} "
             f"Left: the photo with the detected keypoints and the most likely body drawn over "
             f"it. Middle: the most likely body and {self.num_displayed} of "
-            f"{self.num_samples} samples. Right: each vertex coloured by its spread over the "
-            f"{self.num_samples} samples (colour bar below it). Drag to orbit, scroll to zoom."
+            f"{self.num_samples} samples. Right: each vertex coloured by {colour} (colour bar "
+            f"below it).{compare} {self.numbers} Drag to orbit, scroll to zoom."
         )
+        text = " ".join(text.split())
+        return f"{text} Scene: {self.scene_source}." if self.scene_source else text
 
 
 def describe_scene(
@@ -102,10 +127,13 @@ def describe_scene(
     num_samples: int,
     num_displayed: int,
     concentration_factors: Sequence[float] = (),
+    numbers: str = "",
+    colouring: str = "log",
+    compare: str = "",
 ) -> SceneCaption:
     """The caption of a scene showing ``posterior`` (see :class:`SceneCaption`);
     ``concentration_factors``: ``(23,)`` factor per body joint (empty or all 1: as predicted)."""
-    evidence = source_text(posterior).strip("*")
+    evidence = re.sub(r" \(fit \d+ ms\)", "", source_text(posterior).strip("*"))
     scaled = tuple(
         (name, float(factor))
         for name, factor in zip(BODY_JOINT_NAMES, concentration_factors, strict=False)
@@ -119,12 +147,18 @@ def describe_scene(
         num_samples=int(num_samples),
         num_displayed=int(num_displayed),
         concentration_factors=scaled,
+        numbers=numbers,
+        colouring=colouring,
+        compare=compare,
     )
 
 
-def scene_page(server: viser.ViserServer, caption: SceneCaption) -> str:
+def scene_page(
+    server: viser.ViserServer, caption: SceneCaption, scene_json: str | None = None
+) -> str:
     """The scene ``server`` holds as one self-contained HTML document, with ``caption`` shown
-    over its bottom-left corner and as its title."""
+    over its bottom-left corner and as its title, and ``scene_json`` (the scene file it shows,
+    :mod:`hkpd.explorer.scene_file`) embedded so that the page reopens as a scene."""
     page = server.scene.as_html()
     title = html.escape(caption.title)
     page = page.replace("<title>Viser</title>", f"<title>{title}</title>", 1)
@@ -132,6 +166,11 @@ def scene_page(server: viser.ViserServer, caption: SceneCaption) -> str:
         f'<div id="{CAPTION_ID}" style="{CAPTION_STYLE}">'
         f"<strong>{title}</strong><br>{html.escape(caption.text())}</div>"
     )
+    if scene_json is not None:
+        block += (
+            f'<script type="application/json" id="{PAGE_SCENE_ID}">'
+            f"{html.escape(scene_json, quote=False)}</script>"
+        )
     start = page.index("<body")
     body_open = page.index(">", start) + 1
     return page[:body_open] + block + page[body_open:]

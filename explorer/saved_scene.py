@@ -20,6 +20,7 @@ import numpy as np
 from hkpd.explorer.app import ASSUMED_ASPECT, ExplorerApp, framing
 from hkpd.explorer.html_page import iframe_html, write_page
 from hkpd.explorer.provider import Box, PosteriorProvider, PredictionResult
+from hkpd.explorer.scene_file import SceneFile
 from hkpd.prediction.posterior import BodyPosterior
 
 PAGE_TIMEOUT_S = 300.0
@@ -62,6 +63,11 @@ class ScenePage:
     def _repr_html_(self) -> str:
         return iframe_html(self.html, self.height)
 
+    def __repr__(self) -> str:
+        """A short line (the page itself is megabytes: never the default dataclass repr)."""
+        text = f"ScenePage({len(self.html) / 1e6:.1f} MB: {self.caption}"
+        return text if len(text) <= 199 else text[:197] + "…)"
+
     def save(self, path: str | Path, force: bool = False) -> Path:
         """Write the page to ``path``; an existing file is kept unless ``force``."""
         return write_page(path, self.html, force=force)
@@ -79,15 +85,23 @@ def render_scene_page(
     model_name: str = "the model",
     num_samples: int = 100,
     num_displayed: int = 10,
+    scene: SceneFile | None = None,
+    scene_source: str = "",
 ) -> ScenePage:
     """The explorer's first view of ``image`` ``(H, W, 3)`` uint8 RGB with ``occluders``
     (photo pixels) hidden, as a :class:`ScenePage` (``silhouette``: with ``evidence``, the
-    person mask fitted too, for a provider that can).
+    person mask fitted too, for a provider that can). Given a ``scene`` (its photo is
+    ``image``), every setting comes from it instead, the page embeds it and, with
+    ``scene_source``, names the file it came from.
 
     Raises:
         ValueError: an occluder is off the photo.
         RuntimeError: no person was found (pass ``person_box``) or the prediction failed.
     """
+    if scene is not None:
+        occluders, person_box, evidence = scene.active_boxes, scene.person_box, scene.evidence
+        silhouette, num_samples = scene.person_mask, scene.display.num_samples
+        num_displayed = scene.display.num_displayed
     with _quiet_server():  # viser prints an address banner nobody is meant to open
         app = ExplorerApp(
             provider, image, host="127.0.0.1", port=0, num_samples=num_samples,
@@ -96,13 +110,20 @@ def render_scene_page(
             model_name=model_name,
         )  # fmt: skip
     try:
+        if scene is not None:
+            app.keeper.photo, app.keeper.model = scene.photo, scene.model
+            app.keeper.apply(scene)
+            app.keeper.source = scene_source
         if not app.wait_idle(PAGE_TIMEOUT_S):
             raise RuntimeError(f"the prediction took longer than {PAGE_TIMEOUT_S:.0f} s")
         if app.result is None or app.view is None:
             problems = "; ".join(app.errors) or "no person was found: give the person's box"
             raise RuntimeError(f"nothing to show for {photo_name}: {problems}")
         if app.scene.placement is not None:  # a page has no control panel to leave room for
-            position, look_at = framing(app.scene.placement, ASSUMED_ASPECT, 1.0)
+            position, look_at = framing(
+                app.scene.placement, ASSUMED_ASPECT, 1.0, app.scene.combined_shown,
+                app.compare_columns.shown,
+            )  # fmt: skip
             app.server.initial_camera.position = position
             app.server.initial_camera.look_at = look_at
         caption = app.page_caption()

@@ -15,7 +15,9 @@ coloured GLB).
 
 from __future__ import annotations
 
+import contextlib
 import threading
+from collections.abc import Iterator
 
 import numpy as np
 import viser
@@ -99,6 +101,8 @@ class ExplorerScene:
         self.combined_shown = False
         self.titles_top = 1.08
         """World height of the column titles (the combined-shape body's title too)."""
+        self.static = False
+        """Titles for a saved page (nothing of the live app: no "shift+drag")."""
         server.scene.set_up_direction("+y")
         server.scene.world_axes.visible = False
         self.scene_body = server.scene.add_frame(
@@ -127,10 +131,11 @@ class ExplorerScene:
         """
         with self._lock:
             assert self.placement is not None
+            photo, uncertainty = column_titles(self.heatmap.kind, self.static)
             titles = (
-                ("photo", "Photo · shift+drag to hide a part", self.placement.centre[0]),
+                ("photo", photo, self.placement.centre[0]),
                 ("samples", "Most likely body + samples", BODY_POSITION[0]),
-                ("uncertainty", "Uncertainty over samples", HEATMAP_OFFSET),
+                ("uncertainty", uncertainty, HEATMAP_OFFSET),
             )
             self.titles_top = top
             for name, text, x in titles:
@@ -142,6 +147,21 @@ class ExplorerScene:
                     anchor="bottom-center",
                 )
             self.show_legend()
+
+    @contextlib.contextmanager
+    def static_titles(self) -> Iterator[None]:
+        """Inside: the titles of a saved page (see :func:`column_titles`); after: the live
+        app's again."""
+        with self._lock:
+            self.static = True
+            if self.placement is not None:
+                self.show_titles(self.titles_top)
+            try:
+                yield
+            finally:
+                self.static = False
+                if self.placement is not None:
+                    self.show_titles(self.titles_top)
 
     def show_legend(self, scale: HeatmapScale | None = None) -> None:
         """The colour bar of ``scale`` (default: :attr:`heatmap`) under the heatmap body; its
@@ -507,6 +527,15 @@ class ExplorerScene:
             thickness_units="screen",
             visible=self.show_reprojection,
         )
+
+
+def column_titles(kind: str, static: bool = False) -> tuple[str, str]:
+    """The photo's and the uncertainty body's column titles for the colouring ``kind`` (a key
+    of ``COLOURINGS``); ``static``: for a saved page (no "shift+drag" hint)."""
+    photo = "Photo" if static else "Photo · shift+drag to hide a part"
+    if kind == "change":
+        return photo, "Change: uncertainty ÷ no occluders, 1× concentrations"
+    return photo, "Uncertainty over samples"
 
 
 def _concentration_text(value: float) -> str:

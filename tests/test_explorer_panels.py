@@ -89,6 +89,29 @@ class RecordingActions:
     def request_page(self, client) -> None:
         self.calls.append(("request_page",))
 
+    def save_scene(self, client) -> None:
+        self.calls.append(("save_scene",))
+
+    def load_scene_upload(self, name, content, client) -> None:
+        self.calls.append(("load_scene_upload", name, content))
+
+    def undo(self) -> bool:
+        self.calls.append(("undo",))
+        return True
+
+    def redo(self) -> bool:
+        self.calls.append(("redo",))
+        return True
+
+    def reset_everything(self) -> None:
+        self.calls.append(("reset_everything",))
+
+    def set_compare(self, setting) -> None:
+        self.calls.append(("set_compare", setting))
+
+    def compare_failed(self, message: str, client) -> None:
+        self.calls.append(("compare_failed", message))
+
 
 @pytest.fixture(scope="module")
 def server():

@@ -16,8 +16,10 @@ from typing import Protocol
 
 import viser
 
+from hkpd.explorer.panels.compare import CompareActions, CompareSection, build_compare_section
 from hkpd.explorer.panels.concentration import ConcentrationSection, build_concentration_section
 from hkpd.explorer.panels.export import ExportActions, ExportSection, build_export_section
+from hkpd.explorer.panels.keep import KeepActions, KeepSection, build_keep_section
 from hkpd.explorer.panels.photo import PhotoActions, PhotoSection, build_photo_section
 from hkpd.explorer.panels.same_person import (
     SamePersonActions,
@@ -29,7 +31,15 @@ from hkpd.explorer.panels.status import StatusSection, build_status_section
 from hkpd.explorer.panels.teaching import TeachingSection, build_teaching_section
 
 
-class PanelActions(PhotoActions, SamePersonActions, SamplesActions, ExportActions, Protocol):
+class PanelActions(
+    PhotoActions,
+    SamePersonActions,
+    SamplesActions,
+    ExportActions,
+    KeepActions,
+    CompareActions,
+    Protocol,
+):
     """Everything the panel may ask of the app (``ExplorerApp`` implements it): the union of
     the sections' actions. Change the state, then say what became stale; nothing else of the
     app is reachable from a callback."""
@@ -46,6 +56,8 @@ class ExplorerPanels:
     samples: SamplesSection
     export: ExportSection
     teaching: TeachingSection
+    keep: KeepSection
+    compare: CompareSection
 
 
 def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPanels:
@@ -60,15 +72,19 @@ def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPa
     status = build_status_section(gui)
     tabs = gui.add_tab_group()
     with tabs.add_tab("Photo", viser.Icon.PHOTO):
+        keep = build_keep_section(gui, actions)
         photo = build_photo_section(gui, actions)
         same_person = build_same_person_section(gui, actions)
     with tabs.add_tab("Distribution", viser.Icon.ADJUSTMENTS):
         concentration = build_concentration_section(gui, actions)
         samples = build_samples_section(gui, actions)
+        compare = build_compare_section(gui, actions)
         export = build_export_section(gui, actions)
     with tabs.add_tab("Teaching", viser.Icon.SCHOOL):
         teaching = build_teaching_section(gui, actions)
-    return ExplorerPanels(status, photo, same_person, concentration, samples, export, teaching)
+    return ExplorerPanels(
+        status, photo, same_person, concentration, samples, export, teaching, keep, compare
+    )
 
 
 __all__ = ["ExplorerPanels", "PanelActions", "build_panels"]

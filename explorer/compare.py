@@ -1,0 +1,229 @@
+"""Compare: a second posterior (B) for one alternative setting of the same photo and person.
+
+The explorer's own columns show posterior A (what the panel says: this model, these boxes,
+these concentrations). With a compare setting on, B is predicted beside it and drawn in a
+second set of columns (:mod:`hkpd.explorer.compare_scene`):
+
+* ``network``: the network alone (no keypoint evidence), same boxes;
+* ``no-occluders``: the same evidence setting without any box;
+* ``default-concentrations``: the same posterior with every concentration factor at 1×;
+* a checkpoint path: another model (e.g. the ablation's ``independent_samples.pt`` beside
+  ``hierarchical_samples.pt``) on the same photo, person box, boxes and evidence.
+
+B is sampled with A's seed and count and A's concentration factors (except for
+``default-concentrations``), and its per-vertex uncertainty divided by A's is the change
+colouring between the two (B ÷ A). B is predicted once per prediction of A (an occluder
+edit costs two predictions) and sampled once per slider move (a slider move costs two draws).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from hkpd.explorer.posterior_view import PosteriorView, compute_view
+from hkpd.explorer.provider import Box, PosteriorProvider, PredictionResult, PredictorProvider
+from hkpd.explorer.state import StateSnapshot
+from hkpd.prediction.posterior import BodyPosterior
+
+NAMED_SETTINGS: dict[str, str] = {
+    "network": "network only",
+    "no-occluders": "without the boxes",
+    "default-concentrations": "concentrations at 1×",
+}
+"""The compare settings that need no file: command-line word -> what B is, in words."""
+
+Predict = Callable[[np.ndarray, Sequence[Box], bool, bool, Box | None], PredictionResult]
+"""``(image, boxes, evidence, silhouette, person_box) -> PredictionResult`` with A's model."""
+
+
+@dataclass(frozen=True)
+class CompareSetting:
+    """What B differs in from A.
+
+    Attributes:
+        kind: a key of :data:`NAMED_SETTINGS`, or ``"model"``.
+        checkpoint: the other model's checkpoint (``kind == "model"`` only).
+    """
+
+    kind: str
+    checkpoint: str | None = None
+
+    @property
+    def text(self) -> str:
+        """The setting as given on the command line and stored in scene files."""
+        return self.checkpoint if self.kind == "model" else self.kind  # type: ignore[return-value]
+
+    @property
+    def label(self) -> str:
+        """What B is, in a few words ("network only", "model independent_samples.pt")."""
+        if self.kind == "model":
+            return f"model {Path(str(self.checkpoint)).name}"
+        return NAMED_SETTINGS[self.kind]
+
+
+def parse_compare(text: str) -> CompareSetting:
+    """A compare setting from its command-line form: a word of :data:`NAMED_SETTINGS` or the
+    path of a checkpoint file.
+
+    Raises:
+        ValueError: neither a known word nor an existing file.
+    """
+    word = text.strip()
+    if word in NAMED_SETTINGS:
+        return CompareSetting(word)
+    if Path(word).is_file():
+        return CompareSetting("model", str(Path(word)))
+    raise ValueError(
+        f"--compare {text!r}: use one of {', '.join(NAMED_SETTINGS)}, or the path of a model "
+        "checkpoint (that file does not exist)"
+    )
+
+
+def _load_model(path: str) -> PosteriorProvider:
+    return PredictorProvider(path, device="cpu")
+
+
+@dataclass(frozen=True)
+class ComparePrediction:
+    """B's posterior for one prediction of A."""
+
+    setting: CompareSetting
+    posterior: BodyPosterior
+
+
+class Comparison:
+    """Holds the compare setting, B's posterior and B's last view; thread-safe.
+
+    Args:
+        predict: A's model (see :data:`Predict`).
+        load_model: checkpoint path -> provider, for model settings (loaded once per path).
+    """
+
+    def __init__(
+        self, predict: Predict, load_model: Callable[[str], PosteriorProvider] = _load_model
+    ) -> None:
+        self._predict, self._load_model = predict, load_model
+        self._lock = threading.Lock()
+        self._setting: CompareSetting | None = None
+        self._models: dict[str, PosteriorProvider] = {}
+        self._prediction: ComparePrediction | None = None
+        self._view: PosteriorView | None = None
+        self._error: str | None = None
+
+    @property
+    def error(self) -> str | None:
+        """Why the last prediction of B failed (None when it did not)."""
+        with self._lock:
+            return self._error
+
+    @property
+    def setting(self) -> CompareSetting | None:
+        with self._lock:
+            return self._setting
+
+    @property
+    def view(self) -> PosteriorView | None:
+        """B's last view (its ``change_ratio`` is B's uncertainty ÷ A's), or None."""
+        with self._lock:
+            return self._view
+
+    def set_setting(self, setting: CompareSetting | None) -> bool:
+        """Compare against ``setting`` (None: no comparison); loads a model setting's
+        checkpoint now (so a bad file is refused at once). True if it changed.
+
+        Raises:
+            RuntimeError: the checkpoint cannot be loaded.
+        """
+        if setting is not None and setting.kind == "model":
+            self._model(str(setting.checkpoint))
+        with self._lock:
+            if setting == self._setting:
+                return False
+            self._setting, self._prediction, self._view = setting, None, None
+            self._error = None
+            return True
+
+    def clear(self) -> None:
+        """Forget B (nobody was found, or a new photo)."""
+        with self._lock:
+            self._prediction, self._view = None, None
+
+    def predict(self, image: np.ndarray, snapshot: StateSnapshot, result: PredictionResult) -> None:
+        """Predict B for A's ``result`` on ``image`` with the snapshot's boxes and switches (a
+        failure, e.g. B's model finds nobody, is kept in :attr:`error` and B is cleared)."""
+        setting = self.setting
+        if setting is None:
+            self.clear()
+            return
+        try:
+            posterior = self._predict_b(setting, image, snapshot, result)
+        except Exception as error:  # B is an extra: say why it is missing, keep A
+            with self._lock:
+                self._prediction, self._view = None, None
+                self._error = f"{type(error).__name__}: {error}"
+            return
+        with self._lock:
+            if setting == self._setting:
+                self._prediction, self._view = ComparePrediction(setting, posterior), None
+                self._error = None
+
+    def _predict_b(
+        self,
+        setting: CompareSetting,
+        image: np.ndarray,
+        snapshot: StateSnapshot,
+        result: PredictionResult,
+    ) -> BodyPosterior:
+        boxes, box = snapshot.active_boxes, snapshot.person_box
+        evidence, silhouette = snapshot.evidence, snapshot.silhouette
+        if setting.kind == "default-concentrations":
+            posterior = result.posterior
+        elif setting.kind == "network":
+            posterior = self._predict(image, boxes, False, False, box).posterior
+        elif setting.kind == "no-occluders":
+            posterior = self._predict(image, [], evidence, silhouette, box).posterior
+        else:
+            provider = self._model(str(setting.checkpoint))
+            if evidence and silhouette and getattr(provider, "fits_person_mask", False):
+                answer = provider.predict(image, boxes, True, box, silhouette=True)  # type: ignore[call-arg]
+            else:
+                answer = provider.predict(image, boxes, evidence=evidence, bbox=box)
+            posterior = answer.posterior
+        return posterior
+
+    def compute(self, snapshot: StateSnapshot, view_a: PosteriorView) -> PosteriorView | None:
+        """B's view for the sliders in ``snapshot`` (A's seed and count; A's factors unless
+        the setting is ``default-concentrations``), with ``change_ratio`` = B ÷ A."""
+        with self._lock:
+            prediction = self._prediction
+        if prediction is None:
+            return None
+        if prediction.setting.kind == "default-concentrations":
+            snapshot = replace(
+                snapshot,
+                joint_exponents=(0.0,) * len(snapshot.joint_exponents),
+                global_exponent=0.0,
+                shape_std_exponent=0.0,
+            )
+        view = compute_view(prediction.posterior, snapshot, view_a.uncertainty)
+        with self._lock:
+            if self._prediction is prediction:
+                self._view = view
+        return view
+
+    def _model(self, path: str) -> PosteriorProvider:
+        with self._lock:
+            found = self._models.get(path)
+        if found is not None:
+            return found
+        try:
+            provider = self._load_model(path)
+        except Exception as error:
+            raise RuntimeError(f"cannot compare with {path}: {error}") from None
+        with self._lock:
+            return self._models.setdefault(path, provider)

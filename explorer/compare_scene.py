@@ -1,0 +1,147 @@
+"""The compare columns: B's most likely body with its samples, and B's uncertainty body,
+right of A's columns (:mod:`hkpd.explorer.compare`).
+
+B's uncertainty body takes the colouring chosen for A: on the absolute scales (log, linear)
+the two uncertainty bodies read on one colour bar; with the change colouring B's body shows B's
+uncertainty ÷ A's (red: B less sure), with its own colour bar saying so.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import viser
+
+from hkpd.explorer.colour_map import HeatmapScale, change_legend_image
+from hkpd.explorer.photo_geometry import HALF_TURN_ABOUT_X
+from hkpd.explorer.posterior_view import PosteriorView
+from hkpd.explorer.scene import (
+    COMBINED_OFFSET,
+    HEATMAP_BASE_COLOUR,
+    HEATMAP_OFFSET,
+    LEGEND_HEIGHT,
+    LEGEND_SIZE_M,
+    LEGEND_Z,
+    MODE_COLOUR,
+    SAMPLE_COLOUR,
+    SAMPLE_OPACITY,
+)
+
+COMPARE_BODY_OFFSET = COMBINED_OFFSET
+"""World x of B's most likely body (where a combined shape would stand: see docs)."""
+COMPARE_HEAT_OFFSET = COMPARE_BODY_OFFSET + HEATMAP_OFFSET
+"""World x of B's uncertainty body."""
+
+
+def compare_titles(label: str, kind: str) -> tuple[str, str]:
+    """B's two column titles for the colouring ``kind`` (they follow the colouring)."""
+    heat = (
+        f"B ({label}): uncertainty ÷ A's"
+        if kind == "change"
+        else f"B ({label}): uncertainty over samples"
+    )
+    return f"B ({label}): most likely body + samples", heat
+
+
+class CompareColumns:
+    """Scene nodes of B's columns (global scene: every tab sees them). Thread-safe."""
+
+    def __init__(self, server: viser.ViserServer) -> None:
+        self.server = server
+        self._lock = threading.Lock()
+        self._nodes: dict[str, viser.SceneNodeHandle] = {}
+        self._samples: list[viser.MeshHandle] = []
+        self.shown = False
+
+    def show(
+        self,
+        view: PosteriorView,
+        faces: np.ndarray,
+        scale: HeatmapScale,
+        label: str,
+        titles_top: float,
+        show_samples: bool = True,
+    ) -> None:
+        """Draw B's ``view`` (faces ``(F, 3)``) coloured by ``scale``, titled with ``label``."""
+        scene = self.server.scene
+        with self._lock, self.server.atomic():
+            if not self.shown:
+                for name, x in (("body", COMPARE_BODY_OFFSET), ("heat", COMPARE_HEAT_OFFSET)):
+                    self._nodes[name] = scene.add_frame(
+                        f"/compare_{name}", wxyz=HALF_TURN_ABOUT_X, position=(x, 0.0, 0.0),
+                        show_axes=False,
+                    )  # fmt: skip
+            self._mesh("/compare_body/mode", view.mode_vertices, faces, MODE_COLOUR, 1.0)
+            self._mesh("/compare_heat/base", view.mode_vertices, faces, HEATMAP_BASE_COLOUR, 1.0)
+            self._show_samples(view.sample_vertices if show_samples else view.sample_vertices[:0],
+                               faces)  # fmt: skip
+            values = view.change_ratio if scale.kind == "change" else view.uncertainty
+            self._nodes["points"] = scene.add_point_cloud(
+                "/compare_heat/points", view.mode_vertices, scale.colours(values),
+                point_size=0.03, point_shape="circle", point_shading="flat",
+            )  # fmt: skip
+            self._titles(label, scale, titles_top)
+            self.shown = True
+
+    def _titles(self, label: str, scale: HeatmapScale, top: float) -> None:
+        body_title, heat_title = compare_titles(label, scale.kind)
+        scene = self.server.scene
+        for name, text, x in (("title_body", body_title, COMPARE_BODY_OFFSET),
+                              ("title_heat", heat_title, COMPARE_HEAT_OFFSET)):  # fmt: skip
+            self._nodes[name] = scene.add_label(
+                f"/titles/compare_{name}", text, position=(x, top, 0.0), font_screen_scale=1.15,
+                anchor="bottom-center",
+            )  # fmt: skip
+        legend = (
+            change_legend_image(640, 150, title="Uncertainty of B ÷ uncertainty of A")
+            if scale.kind == "change"
+            else scale.legend(width=640, height=150)
+        )
+        self._nodes["legend"] = scene.add_image(
+            "/compare_legend", legend, *LEGEND_SIZE_M, format="png", wxyz=HALF_TURN_ABOUT_X,
+            position=(COMPARE_HEAT_OFFSET, LEGEND_HEIGHT, LEGEND_Z), cast_shadow=False,
+            receive_shadow=False,
+        )  # fmt: skip
+
+    def _mesh(self, name: str, vertices: np.ndarray, faces: np.ndarray, colour, opacity) -> None:
+        handle = self._nodes.get(name)
+        if handle is not None and isinstance(handle, viser.MeshHandle):
+            handle.vertices = vertices
+            return
+        self._nodes[name] = self.server.scene.add_mesh_simple(
+            name, vertices, faces, color=colour, opacity=opacity, cast_shadow=False,
+            receive_shadow=False,
+        )  # fmt: skip
+
+    def _show_samples(self, vertices: np.ndarray, faces: np.ndarray) -> None:
+        while len(self._samples) > len(vertices):
+            self._samples.pop().remove()
+        for index, sample in enumerate(vertices):
+            if index < len(self._samples):
+                self._samples[index].vertices = sample
+            else:
+                self._samples.append(
+                    self.server.scene.add_mesh_simple(
+                        f"/compare_body/samples/{index:02d}",
+                        sample,
+                        faces,
+                        color=SAMPLE_COLOUR,
+                        opacity=SAMPLE_OPACITY,
+                        cast_shadow=False,
+                        receive_shadow=False,
+                    )
+                )
+
+    def clear(self) -> None:
+        """Remove B's columns."""
+        with self._lock, self.server.atomic():
+            for handle in self._samples:
+                handle.remove()
+            for name in ("points", "/compare_body/mode", "/compare_heat/base", "title_body",
+                         "title_heat", "legend", "body", "heat"):  # fmt: skip
+                handle = self._nodes.pop(name, None)
+                if handle is not None:
+                    handle.remove()
+            self._samples, self._nodes = [], {}
+            self.shown = False
