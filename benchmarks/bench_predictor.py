@@ -4,11 +4,13 @@ uncertainty; network-only and evidence posteriors side by side.
 
 Usage: python benchmarks/bench_predictor.py [--model CKPT] [--photos DIR] [--repeats 5]
        [--threads 2] [--no-mirror-reading] [--silhouette-evidence] [--facings 2]
+       [--sex female|male]
 
 ``--silhouette-evidence`` builds the predictor with ``silhouette_evidence=True``: the
 evidence rows then fit the keypoints *and* BlazePose's person mask (issue 41's speed target).
 ``--facings 1`` fits each start only as the network read it, not also half-turned
-(``EvidenceConfig.facings``; issue 42).
+(``EvidenceConfig.facings``; issue 42). By default the evidence posterior fits both sexes'
+shape priors (issue 49: two fits); ``--sex`` states one (one fit), for the comparison.
 
 Without ``--photos`` it uses the explorer's built-in demo photo (rendered by hkpd itself).
 Prints a markdown table; results are recorded in docs/benchmarks.md.
@@ -56,6 +58,9 @@ def main() -> None:
         choices=(1, 2),
         help="fit each start as read (1) or also half-turned (2); default: the model's setting",
     )
+    parser.add_argument(
+        "--sex", choices=("female", "male"), help="state the sex: one fit instead of two"
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     reading = ReadingConfig(mirror=not args.no_mirror_reading)
@@ -78,7 +83,8 @@ def main() -> None:
         for photo in photos:
             for _ in range(args.repeats):
                 start = time.perf_counter()
-                posterior = predictor.predict(photo, evidence=evidence)
+                sex = args.sex if evidence else None
+                posterior = predictor.predict(photo, evidence=evidence, sex=sex)
                 middle = time.perf_counter()
                 posterior.mode()
                 posterior.vertex_uncertainty(100)
@@ -95,7 +101,8 @@ def main() -> None:
         if fit_times:
             fit_name = "keypoint + silhouette fit" if args.silhouette_evidence else "keypoint fit"
             fit_target = "" if args.silhouette_evidence else "<= 200"
-            rows.append((f"  of which the {fit_name}", fit_times, fit_target))
+            sexes = "one sex" if args.sex or not predictor.body.has_sex_priors else "per sex"
+            rows.append((f"  of which the {fit_name} ({sexes})", fit_times, fit_target))
         rows.append((f"mode + 100 samples + vertex uncertainty ({name})", sample_times, ""))
         rows.append((f"photo -> posterior + uncertainty ({name})", totals,
                      "<= 500" if evidence else ""))  # fmt: skip
@@ -105,6 +112,7 @@ def main() -> None:
           f"{predictor.crop_size} px, mirror reading {predictor.reading.config.mirror}, "
           f"silhouette evidence {predictor.silhouette_evidence}, "
           f"facings {predictor.evidence_config.facings}, "
+          f"sexes fitted {1 if args.sex or not predictor.body.has_sex_priors else 2}, "
           f"{len(photos)} photo(s) x {args.repeats}")  # fmt: skip
     print()
     print("| step | median ms | best ms | target |")
