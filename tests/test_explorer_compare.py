@@ -1,0 +1,116 @@
+"""Compare: a second set of columns (B) for one alternative setting of the same photo and
+person, the change colouring between the two (B ÷ A), in the app, its panel, its pages and
+scene files. Driven by the test double (which lowers a joint's concentration 30-fold when the
+keypoint revealing it is covered), so B's numbers are known in advance."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_explorer_double import COCO, OcclusionAwareDouble
+
+from hkpd.explorer.app import ExplorerApp, framing
+from hkpd.explorer.compare import CompareSetting, parse_compare
+from hkpd.explorer.compare_scene import COMPARE_HEAT_OFFSET
+from hkpd.explorer.panels.compare import MODEL, choice_of
+from hkpd.explorer.posterior_view import part_uncertainty
+from hkpd.explorer.provider import PredictionResult
+
+
+class SureDouble(OcclusionAwareDouble):
+    """ "Another model": the double, twice as concentrated everywhere."""
+
+    def predict(self, image, occluders, evidence=True, bbox=None) -> PredictionResult:
+        result = super().predict(image, occluders, evidence, bbox)
+        return PredictionResult(result.posterior.with_concentration(list(range(23)), 2.0))
+
+
+def forearm(view, double, side: str = "left") -> float:
+    parts = part_uncertainty(view.uncertainty, double.body.part_labels.numpy())
+    return parts[f"{side}_elbow"]
+
+
+@pytest.fixture(scope="module")
+def app():
+    double = OcclusionAwareDouble()
+    explorer = ExplorerApp(double, double.scene.image, port=0, num_samples=30, num_displayed=2)
+    explorer.double = double
+    explorer.compare._load_model = lambda path: SureDouble(double.scene, double.body)
+    wrist = double.scene.keypoints2d[COCO.index("left_wrist")]
+    explorer.add_occluder((wrist[0] - 12, wrist[1] - 12, wrist[0] + 12, wrist[1] + 12))
+    assert explorer.wait_idle(60)
+    yield explorer
+    explorer.stop()
+
+
+def test_parse_compare_settings(tmp_path) -> None:
+    assert parse_compare("network") == CompareSetting("network")
+    checkpoint = tmp_path / "other.pt"
+    checkpoint.write_bytes(b"x")
+    setting = parse_compare(str(checkpoint))
+    assert setting.kind == "model" and setting.label == "model other.pt"
+    assert setting.text == str(checkpoint)
+    with pytest.raises(ValueError, match="use one of network, no-occluders"):
+        parse_compare("networks")
+    assert choice_of(setting) == MODEL and choice_of(None) == "Off"
+
+
+def test_no_occluders_b_is_surer_where_the_box_hides_evidence(app) -> None:
+    app.panels.compare.menu.value = "B: without the boxes"  # what a click in the menu does
+    assert app.wait_idle(60)
+    view_a, view_b = app.view, app.compare.view
+    assert view_b is not None and app.compare_columns.shown
+    assert forearm(view_b, app.double) < 0.85 * forearm(view_a, app.double)
+    right_a, right_b = forearm(view_a, app.double, "right"), forearm(view_b, app.double, "right")
+    assert right_b == pytest.approx(right_a, rel=1e-6)  # same seed: the same draw there
+    assert np.allclose(
+        view_b.change_ratio, view_b.uncertainty / np.maximum(view_a.uncertainty, 1e-4)
+    )
+    assert "| left forearm |" in app.panels.compare.numbers.content
+    caption = app.page_caption().text()
+    assert "Further right, B (without the boxes)" in caption and "B ÷ A" in caption
+    assert "/compare_heat/points" in app.server.scene._handle_from_node_name
+    # The framing makes room for B's columns.
+    (x, _, distance), _ = framing(app.scene.placement, 1.6, 1.0, compare=True)
+    (x0, _, distance0), _ = framing(app.scene.placement, 1.6, 1.0)
+    assert distance > distance0 and x > x0 and COMPARE_HEAT_OFFSET > 3
+
+
+def test_default_concentrations_and_another_model(app) -> None:
+    app.panels.concentration.joint_sliders["left_elbow"].value = -1.0
+    app.panels.compare.menu.value = "B: concentrations at 1×"
+    assert app.wait_idle(60)
+    assert forearm(app.compare.view, app.double) < forearm(app.view, app.double)
+    app.panels.concentration.joint_sliders["left_elbow"].value = 0.0
+    app.panels.compare.menu.value = MODEL
+    app.panels.compare.checkpoint.value = __file__  # any existing file: the loader is stubbed
+    assert app.wait_idle(60)
+    ratio = app.compare.view.change_ratio
+    assert app.compare.setting.kind == "model" and 0.5 < float(np.median(ratio)) < 0.85
+    assert app.keeper.settings().compare == __file__
+    app.panels.compare.checkpoint.value = "/no/such/checkpoint.pt"
+    assert "does not exist" in app.panels.compare.numbers.content
+    app.set_compare(None)
+    assert app.wait_idle(60)
+    assert app.compare.view is None and not app.compare_columns.shown
+    assert "/compare_heat/points" not in app.server.scene._handle_from_node_name
+    assert app.panels.compare.menu.value == "Off"
+
+
+def test_change_colouring_titles_follow_it(app) -> None:
+    app.set_compare(CompareSetting("no-occluders"))
+    app.panels.samples.colouring.value = "Change vs. no occluders, default concentrations (×)"
+    assert app.wait_idle(60)
+    labels = {
+        name: handle.text
+        for name, handle in app.server.scene._handle_from_node_name.items()
+        if name.startswith("/titles/")
+    }
+    assert labels["/titles/uncertainty"].startswith("Change: uncertainty ÷ no occluders")
+    assert labels["/titles/compare_title_heat"] == "B (without the boxes): uncertainty ÷ A's"
+    assert "coloured by B's spread ÷ A's" in app.page_caption().text()
+    app.panels.samples.colouring.value = "Uncertainty, log scale (cm)"
+    app.set_compare(None)
+    assert app.wait_idle(60)
+    titles = app.server.scene._handle_from_node_name
+    assert titles["/titles/uncertainty"].text == "Uncertainty over samples"
