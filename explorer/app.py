@@ -25,7 +25,9 @@ import torch
 import viser
 
 from hkpd.distributions import MatrixFisher
+from hkpd.explorer.app_body import BodyAppActions
 from hkpd.explorer.app_keeping import KeepingActions
+from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
 from hkpd.explorer.caption_numbers import numbers_sentence
 from hkpd.explorer.change_baseline import BaselineCache, BaselineKey
 from hkpd.explorer.colour_map import HeatmapScale
@@ -101,8 +103,9 @@ class Timings:
     draw: float = 0.0
 
 
-class ExplorerApp(KeepingActions):
-    """The running explorer (its scene and compare actions: :mod:`hkpd.explorer.app_keeping`).
+class ExplorerApp(KeepingActions, BodyAppActions):
+    """The running explorer (its scene and compare actions: :mod:`hkpd.explorer.app_keeping`;
+    its Body section's: :mod:`hkpd.explorer.app_body`).
 
     Args:
         provider: turns a photo and occluders into a posterior (see :mod:`provider`).
@@ -119,6 +122,8 @@ class ExplorerApp(KeepingActions):
             otherwise).
         photo_name, model_name: what the photo and the model are called in saved pages'
             captions (an uploaded photo goes by its file name).
+        stated: what is known of the first photo's person (sex, measurements), for a provider
+            that takes it (:class:`~hkpd.explorer.provider.BodyStatingProvider`).
 
     Raises:
         ValueError: an occluder lies off the photo or is smaller than 2 pixels.
@@ -139,6 +144,7 @@ class ExplorerApp(KeepingActions):
         silhouette: bool = False,
         photo_name: str = "the photo",
         model_name: str = "the model",
+        stated: BodyStatement = NOTHING_STATED,
     ) -> None:
         image = _check_image(image)
         self.provider = provider
@@ -188,6 +194,8 @@ class ExplorerApp(KeepingActions):
         self.panels.photo.evidence.value = self.state.evidence
         self.panels.photo.silhouette.value = self.state.silhouette
         self.panels.photo.silhouette.disabled = not self.state.evidence
+        self.state.set_stated(stated)
+        self._show_body(None)
         for box in occluders:
             if self.state.add_occluder(box) is None:
                 self.server.stop()
@@ -314,13 +322,17 @@ class ExplorerApp(KeepingActions):
         evidence: bool,
         silhouette: bool,
         bbox: Box | None = None,
+        stated: BodyStatement | None = None,
     ) -> PredictionResult:
         """The provider's prediction; the person mask is asked for only with ``evidence`` and
-        ``silhouette`` both on, so providers that cannot fit it work as before."""
+        ``silhouette`` both on, so providers that cannot fit it work as before, and the
+        ``stated`` body (None: the state's) only with ``evidence``, from providers that take
+        it."""
+        body = self._body_arguments(stated, evidence)
         if evidence and silhouette and self.fits_person_mask:
             provider = cast(MaskFittingProvider, self.provider)
-            return provider.predict(image, boxes, evidence=True, bbox=bbox, silhouette=True)
-        return self.provider.predict(image, boxes, evidence=evidence, bbox=bbox)
+            return provider.predict(image, boxes, True, bbox, silhouette=True, **body)
+        return self.provider.predict(image, boxes, evidence=evidence, bbox=bbox, **body)
 
     def set_person_box(self, box: tuple[float, float, float, float] | None) -> bool:
         """Look for the person only inside ``box`` (None: anywhere); predicts again."""
@@ -513,7 +525,7 @@ class ExplorerApp(KeepingActions):
         try:
             result = self._provider_predict(
                 image, snapshot.active_boxes, snapshot.evidence, snapshot.silhouette,
-                bbox=snapshot.person_box,
+                bbox=snapshot.person_box, stated=snapshot.stated,
             )  # fmt: skip
         except NoPersonFoundError:
             self._no_person(image, token)
@@ -552,11 +564,13 @@ class ExplorerApp(KeepingActions):
         self.scene.clear_bodies()
         self.compare.clear()
         self.compare_columns.clear()
+        self.panels.compare.numbers.content = ""
         if new_photo:
             self._place_photo(image, plain_placement(image.shape[1], image.shape[0]), token)
         self.scene.show_occluders(self.state.snapshot().occluders)
         self.scene.show_person_box(self.state.snapshot().person_box)
         self.panels.status.source.content = ""
+        self._show_body(None)
         advice = (
             "No person was found. Click **Pick the person**, then drag a box around them on "
             "the photo."
@@ -588,7 +602,9 @@ class ExplorerApp(KeepingActions):
         snapshot = self.state.snapshot()
         result: PredictionResult | None = None
         try:
-            result = self._provider_predict(image, [], snapshot.evidence, snapshot.silhouette)
+            result = self._provider_predict(  # a new person: nothing stated yet
+                image, [], snapshot.evidence, snapshot.silhouette, stated=NOTHING_STATED
+            )
         except NoPersonFoundError:
             pass  # the photo is shown all the same: the user picks the person on it
         except Exception as error:  # the predictor's own message says what is wrong
@@ -655,6 +671,7 @@ class ExplorerApp(KeepingActions):
         self.panels.teaching.show_shape_basis(
             posterior, result.proxy, None if overlay is None else overlay.rgba
         )
+        self._show_body(posterior)
         self.compare.predict(image, self.state.snapshot(), result)
         self._sample_job()
         if self.state.snapshot().same_person or self.scene.combined_shown:
@@ -668,7 +685,7 @@ class ExplorerApp(KeepingActions):
         for image, name, client, token in queue:
             try:
                 posterior = self._provider_predict(
-                    image, [], snapshot.evidence, snapshot.silhouette
+                    image, [], snapshot.evidence, snapshot.silhouette, stated=snapshot.stated
                 ).posterior
             except NoPersonFoundError:
                 self._notify(client, "Photo not added", f"{name}: no person found.", error=True)
@@ -779,7 +796,7 @@ class ExplorerApp(KeepingActions):
 
     def _predict_baseline(self, image: np.ndarray, key: BaselineKey) -> BodyPosterior:
         result = self._provider_predict(
-            image, [], key.evidence, key.silhouette, bbox=key.person_box
+            image, [], key.evidence, key.silhouette, bbox=key.person_box, stated=key.stated
         )
         return result.posterior
 
@@ -862,8 +879,9 @@ class ExplorerApp(KeepingActions):
 def _baseline_key(token: int, person_box: Box | None, snapshot: StateSnapshot) -> BaselineKey:
     """The baseline key of a prediction of photo ``token`` with the snapshot's evidence."""
     return BaselineKey(
-        token, person_box, snapshot.evidence, snapshot.evidence and snapshot.silhouette
-    )
+        token, person_box, snapshot.evidence, snapshot.evidence and snapshot.silhouette,
+        snapshot.stated,
+    )  # fmt: skip
 
 
 def framing(

@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import contextlib
 import io
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import rich  # viser's printing library (installed with viser)
+import rich.console
 
 from hkpd.explorer.app import ASSUMED_ASPECT, ExplorerApp, framing
 from hkpd.explorer.html_page import iframe_html, write_page
@@ -134,9 +136,21 @@ def render_scene_page(
             app.stop()
 
 
-def _quiet_server() -> contextlib.AbstractContextManager[object]:
-    """Swallow what viser prints to stdout while the private server starts or stops."""
-    return contextlib.redirect_stdout(io.StringIO())
+@contextlib.contextmanager
+def _quiet_server() -> Iterator[None]:
+    """Swallow what viser prints while the private server starts or stops: its address banner
+    and "(viser) Server stopped" go through rich's global console, which in a notebook writes
+    to the cell's outputs (not to ``sys.stdout``), so that console is swapped for one writing
+    nowhere, and ``sys.stdout`` too. (``stop`` joins the server's thread, so its last line
+    comes inside.)"""
+    sink = io.StringIO()
+    saved = rich.get_console()
+    rich._console = rich.console.Console(file=sink)  # rich's one global console
+    try:
+        with contextlib.redirect_stdout(sink):
+            yield
+    finally:
+        rich._console = saved
 
 
 def show(

@@ -28,7 +28,12 @@ from hkpd.explorer.photo_geometry import HALF_TURN_ABOUT_X, PhotoPlacement
 from hkpd.explorer.posterior_view import PosteriorView
 from hkpd.explorer.state import Occluder
 
-MODE_COLOUR = (236, 168, 128)
+MODE_COLOUR = (200, 194, 186)
+"""The most likely body's default colour: a neutral clay, as the field draws its figures (a
+mannequin, not a person's skin)."""
+SKIN_COLOUR = (236, 168, 128)
+LOOK_COLOURS: dict[str, tuple[int, int, int]] = {"clay": MODE_COLOUR, "skin": SKIN_COLOUR}
+"""The looks of the most likely body (the Body section's *Look* menu) and their colours."""
 SAMPLE_COLOUR = (90, 150, 235)
 SAMPLE_OPACITY = 0.16
 HEATMAP_BASE_COLOUR = (70, 95, 165)
@@ -63,7 +68,8 @@ OVERLAY_LIFT = -0.004
 
 BODY_DRAWINGS = (
     "/body/joint_axes",
-    "/body/joint_axes_label",
+    "/joint_axes_label",
+    "/legend",
     "/photo/keypoints",
     "/photo/reprojection",
 )
@@ -92,6 +98,7 @@ class ExplorerScene:
         self._lock = threading.RLock()
         self._samples: list[viser.MeshHandle] = []
         self._mode: viser.MeshHandle | None = None
+        self.mode_colour: tuple[int, int, int] = MODE_COLOUR
         self._heat_base: viser.MeshHandle | None = None
         self._heat_points: viser.PointCloudHandle | None = None
         self._occluder_nodes: list[viser.SceneNodeHandle] = []
@@ -397,6 +404,7 @@ class ExplorerScene:
                 handle = self.server.scene._handle_from_node_name.get(name)
                 if handle is not None:
                     handle.remove()
+            self.legend_scale = None  # the next body's view draws its colour bar again
 
     def _drop_meshes(self) -> None:
         for handle in [*self._samples, self._mode, self._heat_base]:
@@ -410,12 +418,19 @@ class ExplorerScene:
                 "/body/mode",
                 vertices,
                 self.faces,
-                color=MODE_COLOUR,
+                color=self.mode_colour,
                 cast_shadow=False,
                 receive_shadow=False,
             )
         else:
             self._mode.vertices = vertices
+
+    def set_mode_colour(self, colour: tuple[int, int, int]) -> None:
+        """Draw the most likely body in ``colour`` (RGB 0-255) from now on."""
+        with self._lock:
+            self.mode_colour = tuple(int(c) for c in colour)  # type: ignore[assignment]
+            if self._mode is not None:
+                self._mode.color = self.mode_colour
 
     def _update_samples(self, vertices: np.ndarray | None) -> None:
         count = 0 if vertices is None else len(vertices)

@@ -64,14 +64,17 @@ def test_nobody_in_a_new_box_clears_the_last_persons_body():
     explorer = ExplorerApp(provider, provider.double.scene.image, port=0)
     try:
         assert explorer.set_person_box((20, 20, 300, 500)) and explorer.wait_idle(30)
-        drawn = {"/body/mode", "/heat/points", "/photo/keypoints", "/photo/reprojection"}
+        drawn = {"/body/mode", "/heat/points", "/photo/keypoints", "/photo/reprojection",
+                 "/joint_axes_label", "/legend"}  # fmt: skip
         assert drawn <= nodes(explorer) and explorer.view is not None
         assert explorer.set_person_box(NobodyOutsideBoxes.EMPTY) and explorer.wait_idle(30)
-        assert not drawn & nodes(explorer)
+        assert not drawn & nodes(explorer)  # no arrows line, no colour bar of the old body
         assert explorer.view is None and explorer.result is None
         assert "/photo" in nodes(explorer) and "No person was found" in (
             explorer.panels.status.line.content
         )
+        assert explorer.set_person_box((20, 20, 300, 500)) and explorer.wait_idle(30)
+        assert {"/legend", "/joint_axes_label"} <= nodes(explorer)  # drawn again with a body
     finally:
         explorer.stop()
 
