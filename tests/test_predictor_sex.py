@@ -80,3 +80,27 @@ def test_stated_values_are_refused_without_evidence_or_priors(predictor: Predict
     assert posterior.sex_probabilities is None and posterior.conditioned
     with pytest.raises(ValueError, match="no sex-specific shape priors"):
         old.predict(PHOTO, sex="male")
+
+
+def test_two_photos_combine_sexes_and_count_stated_values_once(predictor: Predictor) -> None:
+    from hkpd.prediction import combine_shapes
+
+    stated = predictor.predict(PHOTO, measurements={"height_m": 1.80})
+    one = stated.measurements()["height_m"]
+    combined = combine_shapes([stated, stated], predictor.body)
+    assert combined.sexes is not None and combined.count == 2
+    from hkpd.body.measurements import body_measurer
+
+    measurer = body_measurer(predictor.body)
+    sex = combined.sexes.most_probable
+    mean, std = measurer.gaussian(combined.sexes.means[sex], combined.sexes.covariances[sex])
+    assert abs(float(mean[0]) - 1.80) < 0.015
+    # Counted once: about the single photo's height std, not 1/sqrt(2) of it.
+    assert float(std[0]) > 0.85 * one[1]
+    # The sexes' log-odds add (equal prior odds); the stated height's share counted once.
+    automatic = predictor.predict(PHOTO)
+    pair = combine_shapes([automatic, automatic], predictor.body).sexes
+    p = automatic.sex_probabilities["female"]
+    assert pair.probabilities["female"] == pytest.approx(p * p / (p * p + (1 - p) ** 2))
+    with pytest.raises(ValueError, match="different stated values"):
+        combine_shapes([automatic, stated], predictor.body)

@@ -22,13 +22,16 @@ shape only: no pose enters).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal, Protocol
 
 import torch
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT
+from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.sex_combination import combine_sexes
+from hkpd.prediction.sex_latent import SexShapes
 from hkpd.uncertainty import vertex_uncertainty
 
 CombinationMethod = Literal["product", "mean"]
@@ -69,6 +72,10 @@ class CombinedShape:
             metres (pelvis-relative meshes, shape only).
         uncertainty_samples: T-pose meshes behind ``vertex_uncertainty``.
         faces: ``(F, 3)`` long triangle indices of the body model.
+        sexes: with ``"product"`` of posteriors that hold sexes, the combined shape of each sex
+            and the combined sex probabilities (:mod:`hkpd.prediction.sex_combination`:
+            stated values counted once); ``betas_mean``/``betas_std`` are then the more
+            probable sex's. None otherwise.
     """
 
     method: CombinationMethod
@@ -79,6 +86,7 @@ class CombinedShape:
     vertex_uncertainty: torch.Tensor
     uncertainty_samples: int
     faces: torch.Tensor
+    sexes: SexShapes | None = None
 
     def __repr__(self) -> str:
         """One line: how and from how many photos, the sizes and the spreads (never the
@@ -246,7 +254,8 @@ def combine_shapes(
         seed: seeds those samples.
 
     Returns:
-        The :class:`CombinedShape`.
+        The :class:`CombinedShape`; with ``"product"`` of posteriors with sex as a latent, per
+        sex (``CombinedShape.sexes``), the more probable sex's shape as its mean and std.
 
     Raises:
         ValueError: empty input, mismatched numbers of coefficients (between photos or with
@@ -254,7 +263,16 @@ def combine_shapes(
             method.
     """
     means, stds = stack_shape_distributions(distributions)
-    return combine_shape_tensors(means, stds, body, method, uncertainty_samples, seed)
+    sexes = None
+    if method == "product" and all(isinstance(item, BodyPosterior) for item in distributions):
+        sexes = combine_sexes(list(distributions), body)  # type: ignore[arg-type]
+    if sexes is None:
+        return combine_shape_tensors(means, stds, body, method, uncertainty_samples, seed)
+    sex = sexes.most_probable
+    mean = sexes.means[sex].to(means.dtype)
+    std = sexes.covariances[sex].diagonal().clamp_min(0).sqrt().to(stds.dtype)
+    combined = combine_shape_tensors(mean[None], std[None], body, method, uncertainty_samples, seed)
+    return replace(combined, count=int(means.shape[0]), sexes=sexes)
 
 
 def combine_shape_tensors(
