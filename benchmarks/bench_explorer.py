@@ -66,6 +66,7 @@ from test_explorer_double import OcclusionAwareDouble
 
 from hkpd.explorer.app import ExplorerApp
 from hkpd.explorer.colour_map import uncertainty_colours
+from hkpd.explorer.compare import parse_compare
 from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.explorer.provider import PredictorProvider
 from hkpd.prediction.image_input import load_image
@@ -130,6 +131,11 @@ def main() -> None:
     parser.add_argument("--uploads", type=int, default=0, help="then upload this many photos")
     parser.add_argument("--startup", type=int, default=0, help="measure start-up this many times")
     parser.add_argument("--photo", default=None, help="photo for --startup (default: shipped)")
+    parser.add_argument(
+        "--compare", default=None, metavar="SETTING",
+        help="with the compare columns on (network, no-occluders, default-concentrations, or a "
+        "checkpoint path)",
+    )  # fmt: skip
     args = parser.parse_args()
     if args.startup:
         report_startup(args.startup, args.photo, args.threads)
@@ -144,6 +150,9 @@ def main() -> None:
     app = ExplorerApp(provider, image, port=0, num_samples=100, num_displayed=10)
     recorder = FrameRecorder(app.url)
     app.wait_idle(120)
+    if args.compare is not None:
+        app.set_compare(parse_compare(args.compare))
+        app.wait_idle(120)
     time.sleep(0.5)
     load = os.getloadavg()[0]
     box = shin_box(app) if args.real else (250, 210, 300, 260)
@@ -219,6 +228,8 @@ def main() -> None:
     app.stop()
 
     model = "shipped Predictor on the shipped photo" if args.real else "test double"
+    if args.compare is not None:
+        model += f", compare {args.compare}"
     print(f"# hkpd explorer benchmark ({model}) — {time.strftime('%Y-%m-%d %H:%M %Z')}")
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "

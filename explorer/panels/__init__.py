@@ -72,9 +72,9 @@ def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPa
     status = build_status_section(gui)
     tabs = gui.add_tab_group()
     with tabs.add_tab("Photo", viser.Icon.PHOTO):
-        keep = build_keep_section(gui, actions)
         photo = build_photo_section(gui, actions)
         same_person = build_same_person_section(gui, actions)
+        keep = build_keep_section(gui, actions)  # last: "Load a photo" stays the first upload
     with tabs.add_tab("Distribution", viser.Icon.ADJUSTMENTS):
         concentration = build_concentration_section(gui, actions)
         samples = build_samples_section(gui, actions)
