@@ -1,7 +1,7 @@
 """The baseline of the "change" colouring: per photo and person, the posterior without occluders.
 
 The change colouring divides each vertex's uncertainty by its uncertainty in the *baseline*:
-the same photo, the same person box and evidence setting, no occluders, default
+the same photo, the same person box, evidence setting and stated body, no occluders, default
 concentrations. The first prediction of every photo has no occluders, so the app records it
 here (:meth:`BaselineCache.record`) and the baseline costs nothing; only when the person box or
 the evidence switch changes while occluders are on does the app predict the baseline once
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
 from hkpd.explorer.posterior_view import baseline_uncertainty
 from hkpd.prediction.posterior import BodyPosterior
 
@@ -34,12 +35,15 @@ class BaselineKey:
         person_box: the box the person was looked for in (None: anywhere).
         evidence: conditioned on the 2D keypoints or the network alone.
         silhouette: the person mask was fitted too.
+        stated: what was stated about the body (sex, measurements): a posterior predicted
+            with other stated values is another person's body, never this key's.
     """
 
     image_token: int
     person_box: tuple[float, float, float, float] | None
     evidence: bool
     silhouette: bool = False
+    stated: BodyStatement = NOTHING_STATED
 
 
 class BaselineCache:

@@ -7,8 +7,9 @@ import numpy as np
 
 MESH_FORMATS = ("glb", "ply")
 
-# Colours of the exported bodies (RGBA): the mode opaque, the samples see-through.
-MODE_RGBA = (225, 190, 165, 255)
+# Colours of the exported bodies (RGBA): the mode opaque in the explorer's clay (a mannequin,
+# as the field draws its figures), the samples see-through.
+MODE_RGBA = (200, 194, 186, 255)
 SAMPLE_RGBA = (110, 160, 230, 110)
 
 

@@ -5,7 +5,9 @@ posterior and (when there is one) the proxy representation from the result, so a
 that method can drive it: the library's :class:`hkpd.prediction.Predictor`, or a test double in
 the test suite. A provider that also has ``find_people`` (:class:`PeopleFinder`) lets the user
 choose among several people in a photo; one with ``fits_person_mask`` (:class:`MaskFittingProvider`)
-also takes ``silhouette=True`` and gets the *Fit the person mask* switch.
+also takes ``silhouette=True`` and gets the *Fit the person mask* switch; one with
+``states_body`` (:class:`BodyStatingProvider`) also takes ``sex=`` and ``measurements=`` (what
+the user states in the Body section; only with ``evidence``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from typing import Protocol
 import numpy as np
 import torch
 
+from hkpd.explorer.body_settings import BodyStatement
+from hkpd.prediction.body_flags import StatedValue
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.predictor import Predictor, refuse_silhouette_model
 
@@ -79,6 +83,36 @@ class MaskFittingProvider(PosteriorProvider, Protocol):
         ...
 
 
+class BodyStatingProvider(PosteriorProvider, Protocol):
+    """A provider that can condition the body on what the user states (optional for
+    providers): the Body section's menu and fields work only when ``states_body`` is True."""
+
+    states_body: bool
+
+    def predict(
+        self,
+        image: np.ndarray,
+        occluders: Sequence[Box],
+        evidence: bool = True,
+        bbox: Box | None = None,
+        sex: str | None = None,
+        measurements: dict[str, StatedValue] | None = None,
+    ) -> PredictionResult:
+        """As :meth:`PosteriorProvider.predict`; ``sex`` ("female", "male") and
+        ``measurements`` (``{name: value | (value, std)}``, metres and kilograms) condition the
+        shape (only with ``evidence``; see :meth:`hkpd.prediction.Predictor.predict`)."""
+        ...
+
+
+def body_arguments(provider: object, stated: BodyStatement, evidence: bool) -> dict[str, object]:
+    """The keyword arguments that pass ``stated`` to ``provider``: empty when nothing is
+    stated, without ``evidence`` (a stated value conditions the evidence posterior only) or
+    for a provider that cannot take them (not ``states_body``)."""
+    if stated.empty or not evidence or not getattr(provider, "states_body", False):
+        return {}
+    return stated.predict_arguments()
+
+
 class PeopleFinder(Protocol):
     """A provider that can also list every person in a photo (optional for providers)."""
 
@@ -95,6 +129,11 @@ class PredictorProvider:
     The proxy shown is ``posterior.network_input.proxy``, what the network saw.
     """
 
+    @property
+    def states_body(self) -> bool:
+        """The body model has sex priors, so a sex and measurements can be stated."""
+        return bool(self.predictor.body.has_sex_priors)
+
     fits_person_mask = True
 
     def __init__(self, path: str | Path | None = None, device: str = "auto") -> None:
@@ -109,11 +148,16 @@ class PredictorProvider:
         evidence: bool = True,
         bbox: Box | None = None,
         silhouette: bool = False,
+        sex: str | None = None,
+        measurements: dict[str, StatedValue] | None = None,
     ) -> PredictionResult:
         boxes = [tuple(map(float, box)) for box in occluders] or None
         with self._lock:  # the predictor's switch holds for this call only
             self.predictor.silhouette_evidence = silhouette
-            posterior = self.predictor.predict(image, occluders=boxes, bbox=bbox, evidence=evidence)
+            posterior = self.predictor.predict(
+                image, occluders=boxes, bbox=bbox, evidence=evidence, sex=sex,
+                measurements=measurements,
+            )  # fmt: skip
         return PredictionResult(posterior=posterior, proxy=posterior.network_input.proxy.cpu())
 
     def find_people(self, image: np.ndarray) -> list[Box]:

@@ -6,6 +6,8 @@ what is stale: ``prediction_version`` (photo or occluders changed: run the predi
 ``sampling_version`` (concentration, shape spread, sample count or seed changed: draw new samples
 from the current posterior). The shapes of further photos of the same person (combined with the
 current photo's into one shape) are kept as plain numbers; a new photo starts a new person.
+What the user stated about the person's body (:class:`BodyStatement`: sex, measurements)
+belongs to that person too: a new photo starts with nothing stated, and a change predicts again.
 
 Occluder boxes are ``(x0, y0, x1, y1)`` in original-photo pixels, pixel-edge coordinates (pixel
 column ``i`` spans ``[i, i + 1)``), exactly what :func:`hkpd.prediction.apply_occluders` takes.
@@ -17,6 +19,7 @@ import math
 import threading
 from dataclasses import dataclass, field, replace
 
+from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
 
 NUM_BODY_JOINTS = len(BODY_JOINT_NAMES)
@@ -119,6 +122,7 @@ class StateSnapshot:
     person_box: tuple[float, float, float, float] | None = None
     same_person: tuple[SamePersonShape, ...] = ()
     silhouette: bool = False
+    stated: BodyStatement = NOTHING_STATED
 
     @property
     def active_boxes(self) -> list[tuple[float, float, float, float]]:
@@ -157,6 +161,7 @@ class ExplorerState:
     _global_exponent: float = 0.0
     _shape_std_exponent: float = 0.0
     _same_person: list[SamePersonShape] = field(default_factory=list)
+    _stated: BodyStatement = NOTHING_STATED
     _next_ident: int = 1
     _prediction_version: int = 0
     _sampling_version: int = 0
@@ -182,6 +187,7 @@ class ExplorerState:
                 person_box=self.person_box,
                 same_person=tuple(self._same_person),
                 silhouette=self.silhouette,
+                stated=self._stated,
             )
 
     def occluder(self, ident: int) -> Occluder:
@@ -196,9 +202,9 @@ class ExplorerState:
     def set_image(
         self, width: int, height: int, person_box: tuple[float, float, float, float] | None = None
     ) -> None:
-        """A new photo: its size, no occluders, no person box and no further photos of the same
-        person (they belong to the old photo) unless ``person_box`` is given; concentration
-        edits are kept."""
+        """A new photo: its size, no occluders, no person box, no further photos of the same
+        person and nothing stated about the body (they belong to the old photo's person) unless
+        ``person_box`` is given; concentration edits are kept."""
         if width < 1 or height < 1:
             raise ValueError(f"image size must be positive, got {width}x{height}")
         with self._lock:
@@ -206,6 +212,7 @@ class ExplorerState:
             self._occluders.clear()
             self._next_ident = 1
             self._same_person.clear()
+            self._stated = NOTHING_STATED
             self.person_box = None if person_box is None else clamp_box(person_box, width, height)
             self._prediction_version += 1
 
@@ -236,6 +243,24 @@ class ExplorerState:
             if self.silhouette == bool(enabled):
                 return False
             self.silhouette = bool(enabled)
+            self._prediction_version += 1
+            return True
+
+    @property
+    def stated(self) -> BodyStatement:
+        """What the user stated about the person's body (sex, measurements)."""
+        with self._lock:
+            return self._stated
+
+    def set_stated(self, stated: BodyStatement) -> bool:
+        """State the person's sex and measurements (a checked :class:`BodyStatement`; an empty
+        one: let the photo decide); False if unchanged."""
+        if not isinstance(stated, BodyStatement):
+            raise TypeError(f"expected a BodyStatement, got {type(stated).__name__}")
+        with self._lock:
+            if stated == self._stated:
+                return False
+            self._stated = stated
             self._prediction_version += 1
             return True
 

@@ -16,6 +16,7 @@ from typing import Protocol
 
 import viser
 
+from hkpd.explorer.panels.body import BodyActions, BodySection, build_body_section
 from hkpd.explorer.panels.compare import CompareActions, CompareSection, build_compare_section
 from hkpd.explorer.panels.concentration import ConcentrationSection, build_concentration_section
 from hkpd.explorer.panels.export import ExportActions, ExportSection, build_export_section
@@ -38,6 +39,7 @@ class PanelActions(
     ExportActions,
     KeepActions,
     CompareActions,
+    BodyActions,
     Protocol,
 ):
     """Everything the panel may ask of the app (``ExplorerApp`` implements it): the union of
@@ -58,6 +60,7 @@ class ExplorerPanels:
     teaching: TeachingSection
     keep: KeepSection
     compare: CompareSection
+    body: BodySection
 
 
 def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPanels:
@@ -73,6 +76,7 @@ def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPa
     tabs = gui.add_tab_group()
     with tabs.add_tab("Photo", viser.Icon.PHOTO):
         photo = build_photo_section(gui, actions)
+        body = build_body_section(gui, actions)
         same_person = build_same_person_section(gui, actions)
         keep = build_keep_section(gui, actions)  # last: "Load a photo" stays the first upload
     with tabs.add_tab("Distribution", viser.Icon.ADJUSTMENTS):
@@ -83,8 +87,9 @@ def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPa
     with tabs.add_tab("Teaching", viser.Icon.SCHOOL):
         teaching = build_teaching_section(gui, actions)
     return ExplorerPanels(
-        status, photo, same_person, concentration, samples, export, teaching, keep, compare
-    )
+        status, photo, same_person, concentration, samples, export, teaching, keep, compare,
+        body,
+    )  # fmt: skip
 
 
 __all__ = ["ExplorerPanels", "PanelActions", "build_panels"]

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import viser
 
+from hkpd.explorer.body_text import body_sentence
 from hkpd.prediction.posterior import BodyPosterior
 
 PICKING_TEXT = "**Drag a box around the person** (Shift + drag on the photo)."
@@ -48,7 +49,9 @@ def build_status_section(gui: viser.GuiApi) -> StatusSection:
 
 def source_text(posterior: BodyPosterior) -> str:
     """The status line for a posterior: which distribution is shown, why when the evidence fit
-    fell back, and whether the network read a copy of the crop turned upright or mirrored.
+    fell back, whether the network read a copy of the crop turned upright or mirrored, and
+    the drawn body's sex (with its probability, or "stated"), height and mass
+    (:func:`hkpd.explorer.body_text.body_sentence`; only for a posterior with sexes).
 
     A custom provider's posterior may lack the evidence attributes: it then reads as the
     network alone."""
@@ -69,4 +72,7 @@ def source_text(posterior: BodyPosterior) -> str:
         text += f" The person leans {abs(tilt):.0f}°: read from a copy turned upright."
     if getattr(posterior, "mirror_read", False):
         text += " Read from the mirror image (its body fits the keypoints better)."
+    body = body_sentence(posterior)
+    if body:
+        text += f" {body}"
     return f"*{text}*"
