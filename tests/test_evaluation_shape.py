@@ -11,6 +11,7 @@ import pytest
 import torch
 
 from hkpd.body import BodyModel
+from hkpd.body.measurements import MEASUREMENT_NAMES
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.cli import main as eval_main
@@ -243,8 +244,17 @@ def test_eval_shape_writes_shape_json_beside_the_report(tmp_path, capsys) -> Non
         assert all(value > 0 for value in record[name]["z2"])
         assert record[name]["mean_body_pve_t_sc_mm"] > 0
     assert record["settings"]["mask_noise"]["dilation_px"] == MaskNoise().dilation_px
+    # Issue 49: the sex-labelled bodies' automatic sex, measurements and stated values.
+    assert 0.0 <= record["sex"]["accuracy"] <= 1.0 and 0.0 <= record["sex"]["ece"] <= 0.5
+    assert record["sex"]["examples"] == 4
+    assert set(record["measurements"]) == set(MEASUREMENT_NAMES)
+    assert all(set(v) == {"mae", "z2"} and v["z2"] > 0 for v in record["measurements"].values())
+    stated = record["stated"]
+    assert stated["sex"]["pve_t_sc_mm"] > 0 and stated["sex+height+mass"]["pve_t_sc_mm"] > 0
+    assert stated["sex+height+mass"]["height_error_mm"] < 15  # the stated height is honoured
     text = report.read_text()
     assert "Shape read on the synthetic test set" in text and "mean R² β₁…β₉" in text
+    assert "Sex, measurements and stated values" in text
     assert eval_main([*arguments[:-2], "--shape"]) == 2
     assert "give --out" in capsys.readouterr().err
     assert eval_main([str(checkpoint), str(checkpoint), "--shape", "--out", str(report)]) == 2
