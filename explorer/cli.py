@@ -5,6 +5,7 @@ Usage::
     hkpd-explore [IMAGE] [--bbox X0 Y0 X1 Y1] [--occluder X0 Y0 X1 Y1]... [--demo photo|synthetic]
                  [--port 8080] [--host 127.0.0.1] [--no-browser] [--model PATH] [--device auto]
                  [--samples 100] [--meshes 10] [--export-html OUT.html [--force]]
+                 [--sex {female,male}] [--height M [STD]] [--mass KG [STD]] ...
 
 The server binds to 127.0.0.1 unless ``--host`` says otherwise (anyone who can reach the port
 can drive the app and upload files, so a warning is printed). A busy ``--port`` is an error;
@@ -13,6 +14,11 @@ can drive the app and upload files, so a warning is printed). A busy ``--port`` 
 With ``--export-html OUT.html`` no server is started for anyone: the first view (with the
 ``--occluder`` boxes hidden) is written to one self-contained page and the command exits; an
 existing OUT.html is kept unless ``--force``.
+
+``--sex`` and the measurement flags (``--height``, ``--mass``, ``--chest``, ``--waist``,
+``--hip``, ``--shoulder-width``, each ``VALUE [STD]``) are hkpd-predict's
+(:mod:`hkpd.prediction.body_flags`): they state what is known of the first photo's person, as
+the Body section does, and are checked before the model loads.
 
 Start-up order: the heavy modules (torch, the model) are imported only once the arguments and
 the photo's path are checked; the model, then the app (see docs/benchmarks.md, "Explorer
@@ -42,6 +48,7 @@ from hkpd.interrupts import interrupted, raise_if_interrupted
 
 if TYPE_CHECKING:
     from hkpd.explorer.app import ExplorerApp
+    from hkpd.explorer.body_settings import BodyStatement
     from hkpd.explorer.provider import PosteriorProvider
     from hkpd.explorer.scene_file import SceneFile
 
@@ -98,6 +105,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --export-html or --save-scene: replace an existing file",
     )
     _add_scene_arguments(parser)
+    from hkpd.prediction.body_flags import add_body_arguments
+
+    add_body_arguments(parser)
     parser.add_argument(
         "--port", type=int, default=8080, help="TCP port (default 8080; 0: any free port)"
     )
@@ -233,6 +243,24 @@ def _model_name(args: argparse.Namespace) -> str:
     return Path(args.model).name if args.model else "the shipped model"
 
 
+def _stated_body(args: argparse.Namespace) -> BodyStatement:
+    """What ``--sex`` and the measurement flags state, checked before the model loads (a
+    usage error names the flag)."""
+    from hkpd.explorer.body_settings import BodyStatement
+    from hkpd.prediction.body_flags import stated_body
+
+    try:
+        stated = BodyStatement.from_stated(stated_body(args))
+    except ValueError as error:
+        raise SystemExit(f"hkpd-explore: {error}") from None
+    if not stated.empty and args.no_evidence:
+        raise SystemExit(
+            "hkpd-explore: --sex and the measurement flags condition the shape, which needs "
+            "the keypoint evidence: drop --no-evidence"
+        )
+    return stated
+
+
 def _load_provider_and_app(args: argparse.Namespace) -> tuple[PosteriorProvider, type[ExplorerApp]]:
     """The provider (the model), then the app class. Loading the model in a thread while the
     app's modules import was measured slower (its first prediction then cost ~4 CPU seconds
@@ -275,8 +303,10 @@ def _export_page(
     args: argparse.Namespace,
     person_box: tuple[float, float, float, float] | None,
     occluders: list[tuple[float, float, float, float]],
+    stated: BodyStatement,
 ) -> int:
-    """``--export-html``: write the first view as one page and exit (no server for users)."""
+    """``--export-html``: write the first view as one page and exit (no server for users);
+    ``stated``: what the body flags state (the caption says it)."""
     target = Path(args.export_html)
     if target.exists() and not args.force:
         raise SystemExit(
@@ -294,7 +324,7 @@ def _export_page(
     try:
         page = render_scene_page(
             provider, image, photo_name=scene.photo.name, model_name=_model_name(args),
-            scene=scene, scene_source=source,
+            scene=scene, scene_source=source, stated=stated,
         )  # fmt: skip
         written = page.save(target, force=args.force)
     except (ValueError, RuntimeError, OSError) as error:
@@ -325,12 +355,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     occluders = [_box_argument("--occluder", box) for box in args.occluder]
     if args.scene is not None and (args.image is not None or args.occluder or args.bbox):
         raise SystemExit("hkpd-explore: give either a photo and its options or --scene FILE")
+    stated = _stated_body(args)
     if args.save_scene is not None and args.export_html is None:  # a scene, no server
         _scene_and_photo(args, person_box, occluders, photo=False)
         return 0
     if args.export_html is not None:
         try:
-            return _export_page(args, person_box, occluders)
+            return _export_page(args, person_box, occluders, stated)
         except KeyboardInterrupt:
             return interrupted("hkpd-explore")
     if args.port != 0:
@@ -362,6 +393,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             silhouette=scene.person_mask,
             photo_name=scene.photo.name,
             model_name=_model_name(args),
+            stated=stated,
         )
         app.keeper.photo, app.keeper.model, app.keeper.source = scene.photo, scene.model, source
         app.keeper.apply(scene)

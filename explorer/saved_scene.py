@@ -20,6 +20,7 @@ import rich  # viser's printing library (installed with viser)
 import rich.console
 
 from hkpd.explorer.app import ASSUMED_ASPECT, ExplorerApp, framing
+from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
 from hkpd.explorer.html_page import iframe_html, write_page
 from hkpd.explorer.provider import Box, PosteriorProvider, PredictionResult
 from hkpd.explorer.scene_file import SceneFile
@@ -89,12 +90,15 @@ def render_scene_page(
     num_displayed: int = 10,
     scene: SceneFile | None = None,
     scene_source: str = "",
+    stated: BodyStatement = NOTHING_STATED,
 ) -> ScenePage:
     """The explorer's first view of ``image`` ``(H, W, 3)`` uint8 RGB with ``occluders``
     (photo pixels) hidden, as a :class:`ScenePage` (``silhouette``: with ``evidence``, the
     person mask fitted too, for a provider that can). Given a ``scene`` (its photo is
     ``image``), every setting comes from it instead, the page embeds it and, with
-    ``scene_source``, names the file it came from.
+    ``scene_source``, names the file it came from. ``stated``: what is known of the person's
+    body (sex, measurements; for a provider that takes it): the caption says it with the drawn
+    body's sex and measurements.
 
     Raises:
         ValueError: an occluder is off the photo.
@@ -109,7 +113,7 @@ def render_scene_page(
             provider, image, host="127.0.0.1", port=0, num_samples=num_samples,
             num_displayed=num_displayed, person_box=person_box, occluders=occluders,
             evidence=evidence, silhouette=silhouette, photo_name=photo_name,
-            model_name=model_name,
+            model_name=model_name, stated=stated,
         )  # fmt: skip
     try:
         if scene is not None:

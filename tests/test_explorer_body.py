@@ -8,7 +8,9 @@ Driven by a test double of a provider that takes stated values (built on the exp
 
 from __future__ import annotations
 
+import html
 import io
+import re
 import threading
 from dataclasses import replace
 
@@ -20,6 +22,7 @@ from PIL import Image
 from test_explorer_double import OcclusionAwareDouble
 
 from hkpd.body.asset import SEX_NAMES
+from hkpd.explorer import cli
 from hkpd.explorer.app import ExplorerApp
 from hkpd.explorer.body_settings import (
     NOTHING_STATED,
@@ -28,6 +31,7 @@ from hkpd.explorer.body_settings import (
     parse_fields,
 )
 from hkpd.explorer.change_baseline import BaselineCache, BaselineKey
+from hkpd.explorer.html_page import CAPTION_ID
 from hkpd.explorer.panels.body import LOOKS, SEX_CHOICES, build_body_section
 from hkpd.explorer.panels.status import source_text
 from hkpd.explorer.provider import PredictorProvider, body_arguments
@@ -275,3 +279,48 @@ def test_the_drawn_body_is_clay_by_default_and_skin_on_request(app) -> None:
     assert app.scene._mode.color == MODE_COLOUR
     with pytest.raises(ValueError, match="look must be one of clay, skin"):
         app.set_look("chrome")
+
+
+# ---------------------------------------------------------------------- the command line
+
+
+def test_the_body_flags_parse_as_hkpd_predicts() -> None:
+    args = cli.build_parser().parse_args(["photo.jpg", "--sex", "male", "--height", "1.85",
+                                          "--mass", "90", "2"])  # fmt: skip
+    assert cli._stated_body(args) == BodyStatement.of(
+        "male", {"height_m": 1.85, "mass_kg": (90.0, 2.0)}
+    )
+    assert cli._stated_body(cli.build_parser().parse_args([])) == NOTHING_STATED
+
+
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (["--height", "185"], r"--height 185: height_m = 185 m is outside 0.5-2.6 m"),
+        (["--mass", "heavy"], r"--mass heavy: not a number"),
+        (["--height", "1.8", "--no-evidence"], r"needs the keypoint evidence: drop --no-evidence"),
+    ],
+)
+def test_bad_body_flags_are_refused_before_the_model_loads(flags, message) -> None:
+    # A provider that cannot be built: the flags are refused before anyone tries.
+    with pytest.raises(SystemExit, match=message):
+        cli.main(["--no-browser", "--port", "0", "--provider", "no_such_module:x", *flags])
+
+
+def test_an_unknown_sex_is_a_usage_error(capsys) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["--sex", "robot"])
+    assert exit_info.value.code == 2 and "invalid choice: 'robot'" in capsys.readouterr().err
+
+
+def test_the_exported_pages_caption_says_the_sex_and_measurements(tmp_path) -> None:
+    page = tmp_path / "page.html"
+    assert cli.main(
+        ["--demo", "synthetic", "--provider", "test_explorer_body:BodyStatingDouble",
+         "--samples", "20", "--meshes", "1", "--export-html", str(page), "--sex", "male",
+         "--height", "1.85"]
+    ) == 0  # fmt: skip
+    text = html.unescape(page.read_text(encoding="utf-8"))
+    caption = re.search(f'<div id="{CAPTION_ID}"[^>]*>(.*?)</div>', text, re.S).group(1)
+    assert "Body drawn: male (stated); height " in caption and " cm, mass " in caption
+    assert "Stated: male, height 185 ± 1 cm." in caption
