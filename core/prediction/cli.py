@@ -717,26 +717,33 @@ def _predict_all(
     from tqdm import tqdm
 
     expected = _expected_errors()
-    for image, name in tqdm(photos, desc=PROG, unit="photo", file=sys.stderr):
-        raise_if_interrupted()  # a Ctrl-C some library caught during the last photo
-        try:
-            result = predict_into(out / name, image)
-        except expected as error:
-            result = PhotoResult(image=image, error=_one_line(error))
-        except Exception as error:  # unexpected: still one line, and go on
-            result = PhotoResult(image=image, error=f"{type(error).__name__}: {error}")
-        if result.error is not None and result.error.startswith(f"{image}: "):
-            result.error = result.error[len(f"{image}: ") :]  # the path is said once
-        results.append(result)
-        if result.error is not None:
-            tqdm.write(f"{PROG}: FAILED {image}: {result.error}", file=sys.stderr)
-        else:
-            box = ", ".join(f"{value:.0f}" for value in result.person_box or ())
-            tqdm.write(
-                f"{image}: person at bbox ({box}) -> {result.folder} ({result.seconds:.1f} s)"
-                + (f" [{result.note}]" if result.note else ""),
-                file=sys.stdout,
-            )
+    progress = None
+    try:
+        with deferred_interrupts():  # a Ctrl-C while the bar is first drawn waits for it
+            progress = tqdm(photos, desc=PROG, unit="photo", file=sys.stderr)
+        for image, name in progress:
+            raise_if_interrupted()  # a Ctrl-C some library caught during the last photo
+            try:
+                result = predict_into(out / name, image)
+            except expected as error:
+                result = PhotoResult(image=image, error=_one_line(error))
+            except Exception as error:  # unexpected: still one line, and go on
+                result = PhotoResult(image=image, error=f"{type(error).__name__}: {error}")
+            if result.error is not None and result.error.startswith(f"{image}: "):
+                result.error = result.error[len(f"{image}: ") :]  # the path is said once
+            results.append(result)
+            if result.error is not None:
+                tqdm.write(f"{PROG}: FAILED {image}: {result.error}", file=sys.stderr)
+            else:
+                box = ", ".join(f"{value:.0f}" for value in result.person_box or ())
+                tqdm.write(
+                    f"{image}: person at bbox ({box}) -> {result.folder} ({result.seconds:.1f} s)"
+                    + (f" [{result.note}]" if result.note else ""),
+                    file=sys.stdout,
+                )
+    finally:
+        if progress is not None:  # the bar's line ends, also on a Ctrl-C: its line follows
+            progress.close()
 
 
 def _final_report(out: Path, results: Sequence[PhotoResult], combined: str | None) -> int:
