@@ -42,8 +42,8 @@ def _run(arguments, monkeypatch, factory):
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory, scene, checkpoint, fake_predictor_factory):  # noqa: F811
-    """One photo with nothing stated ("auto"), and two copies of it with ``STATED`` and
-    ``--same-person`` ("stated")."""
+    """One photo with nothing stated ("auto") and with ``--no-evidence`` ("network"), and two
+    copies of it with ``STATED`` and ``--same-person`` ("stated")."""
     root = tmp_path_factory.mktemp("body")
     photo = root / "photos" / "person.png"
     photo.parent.mkdir()
@@ -55,6 +55,8 @@ def runs(tmp_path_factory, scene, checkpoint, fake_predictor_factory):  # noqa: 
     codes = {
         "auto": _run([photo, "--out", root / "auto", *common], monkeypatch,
                      fake_predictor_factory)[0],
+        "network": _run([photo, "--out", root / "network", *common, "--no-evidence"],
+                        monkeypatch, fake_predictor_factory)[0],
         "stated": _run([photo, photo.with_name("again.png"), "--out", root / "stated", *common,
                         "--same-person", *STATED], monkeypatch, fake_predictor_factory)[0],
     }  # fmt: skip
@@ -205,6 +207,18 @@ def test_the_same_person_shape_says_what_was_stated_and_how_it_counts(runs):
     # twice, as the note says).
     assert height["std"] == pytest.approx(photo_height["std"] / math.sqrt(2), rel=0.15)
     assert list(shape["measurements"]) == list(MEASUREMENT_NAMES)
+
+
+def test_the_networks_own_posterior_has_no_sexes_but_measurements(runs):
+    assert runs["codes"]["network"] == 0
+    summary = _summary(runs, "network")
+    assert summary["posterior"]["source"] == "network"
+    assert summary["sex_probabilities"] is None and summary["drawn_sex"] is None
+    assert summary["stated"] is None
+    assert list(summary["measurements"]) == list(MEASUREMENT_NAMES)
+    assert all(item["std"] > 0 for item in summary["measurements"].values())
+    arrays = np.load(runs["root"] / "network" / "person" / "prediction.npz")
+    assert "sex_probabilities" not in arrays.files and "measurement_mean" in arrays.files
 
 
 def test_the_overview_footer_has_a_line_about_the_body(runs):
