@@ -104,8 +104,8 @@ def measurement_markdown(
         body = f"{in_field_units(name, mean):.0f} ± {in_field_units(name, std):.0f} {unit}"
         said = ""
         if name in given:
-            value, value_std = given[name]
-            said = f"{in_field_units(name, value):g} ± {in_field_units(name, value_std):.2g}"
+            value, spread = (in_field_units(name, number) for number in given[name])
+            said = f"{value:g} ± {spread:.2g} {unit}"
         rows.append(f"| {label} | {body} | {said} |")
     return "\n".join(rows)
 

@@ -245,7 +245,7 @@ def test_stating_a_sex_and_a_height_predicts_with_them(app) -> None:
     assert app.wait_idle(30)
     assert last_call(app) == (True, "male", {"height_m": (1.85, 0.01)})
     assert body.fields["height_m"].value == "185"  # the field shows what is stated
-    assert "| 185 ± 1 |" in body.measurements.content  # the stated column
+    assert "| 185 ± 1 cm |" in body.measurements.content  # the stated column
     assert app._result_key.stated == app.state.stated  # the posterior's key names the body
     assert app.result.posterior.sex == "male" and mass_female > 0
     # The network alone cannot take stated values: none are sent, the section says why.
