@@ -26,7 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from hkpd.explorer.posterior_view import PosteriorView, compute_view
-from hkpd.explorer.provider import Box, PosteriorProvider, PredictionResult, PredictorProvider
+from hkpd.explorer.provider import (
+    Box,
+    PosteriorProvider,
+    PredictionResult,
+    PredictorProvider,
+    body_arguments,
+)
 from hkpd.explorer.state import StateSnapshot
 from hkpd.prediction.posterior import BodyPosterior
 
@@ -189,10 +195,11 @@ class Comparison:
             posterior = self._predict(image, [], evidence, silhouette, box).posterior
         else:
             provider = self._model(str(setting.checkpoint))
+            body = body_arguments(provider, snapshot.stated, evidence)  # the same person as A
             if evidence and silhouette and getattr(provider, "fits_person_mask", False):
-                answer = provider.predict(image, boxes, True, box, silhouette=True)  # type: ignore[call-arg]
+                answer = provider.predict(image, boxes, True, box, silhouette=True, **body)  # type: ignore[call-arg]
             else:
-                answer = provider.predict(image, boxes, evidence=evidence, bbox=box)
+                answer = provider.predict(image, boxes, evidence=evidence, bbox=box, **body)
             posterior = answer.posterior
         return posterior
 

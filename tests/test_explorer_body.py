@@ -31,6 +31,7 @@ from hkpd.explorer.body_settings import (
     parse_fields,
 )
 from hkpd.explorer.change_baseline import BaselineCache, BaselineKey
+from hkpd.explorer.compare import CompareSetting, Comparison
 from hkpd.explorer.html_page import CAPTION_ID
 from hkpd.explorer.panels.body import LOOKS, SEX_CHOICES, build_body_section
 from hkpd.explorer.panels.status import source_text
@@ -324,3 +325,16 @@ def test_the_exported_pages_caption_says_the_sex_and_measurements(tmp_path) -> N
     caption = re.search(f'<div id="{CAPTION_ID}"[^>]*>(.*?)</div>', text, re.S).group(1)
     assert "Body drawn: male (stated); height " in caption and " cm, mass " in caption
     assert "Stated: male, height 185 ± 1 cm." in caption
+
+
+def test_compare_with_another_model_predicts_the_same_stated_person() -> None:
+    other = BodyStatingDouble()
+    comparison = Comparison(lambda *args: None, load_model=lambda path: other)  # type: ignore[arg-type]
+    comparison.set_setting(CompareSetting("model", "other.pt"))
+    state = ExplorerState()
+    state.set_image(*other.double.scene.image.shape[1::-1])
+    state.set_stated(BodyStatement.of("female", {"height_m": 1.6}))
+    result = other.predict(other.double.scene.image, [])
+    comparison.predict(other.double.scene.image, state.snapshot(), result)
+    assert comparison.error is None
+    assert other.calls[-1] == (True, "female", {"height_m": (1.6, 0.01)})
