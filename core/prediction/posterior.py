@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from hkpd.body import BodyModel
+from hkpd.body.extremity_landmarks import NUM_EXTREMITY, extremity_landmarks
 from hkpd.body.measurements import body_measurer
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import BodyDistribution, KinematicMatrixFisher
@@ -78,6 +79,13 @@ class BodyMeshes:
         keypoints2d: ``(N, 17, 2)`` COCO keypoints reprojected into ORIGINAL image pixels.
         betas: ``(N, 10)`` shape coefficients.
         body_pose: ``(N, 23, 3, 3)`` relative joint rotations.
+        foot_keypoints2d: ``(N, 6, 2)`` COCO-WholeBody's foot points reprojected into ORIGINAL
+            image pixels, its order: left big toe, left small toe, left heel, right big toe,
+            right small toe, right heel (:mod:`hkpd.body.extremity_landmarks`).
+        extremity_keypoints2d: ``(N, 10, 2)`` BlazePose's hand and foot landmarks (17-22,
+            29-32: pinky, index, thumb, heel, foot index; left then right of each) reprojected
+            into ORIGINAL image pixels
+            (:data:`hkpd.body.extremity_landmarks.BLAZEPOSE_EXTREMITY_NAMES` order).
     """
 
     vertices: torch.Tensor
@@ -86,6 +94,8 @@ class BodyMeshes:
     keypoints2d: torch.Tensor
     betas: torch.Tensor
     body_pose: torch.Tensor
+    foot_keypoints2d: torch.Tensor
+    extremity_keypoints2d: torch.Tensor
 
 
 @dataclass(frozen=True)
@@ -226,16 +236,25 @@ class BodyPosterior:
             posed = self.body(betas, body_pose, orient)
         root = posed.joints[:, :1]
         keypoints3d = posed.keypoints - root
-        ndc = weak_perspective_project(keypoints3d, self.camera.expand(count, 3))
-        keypoints2d = self.crop.crop_to_image(ndc_to_pixels(ndc, self.crop.size))
+        landmarks = extremity_landmarks(self.body).of_mesh(posed.vertices) - root  # (N, 16, 3)
+        pixels = self._photo_pixels(torch.cat((keypoints3d, landmarks), dim=1))
         return BodyMeshes(
             vertices=posed.vertices.sub_(root),  # in place: one copy of n meshes, not two
             joints=posed.joints - root,
             keypoints3d=keypoints3d,
-            keypoints2d=torch.as_tensor(keypoints2d, dtype=keypoints3d.dtype),
+            keypoints2d=pixels[:, :17],
             betas=betas,
             body_pose=body_pose,
+            foot_keypoints2d=pixels[:, 17 + NUM_EXTREMITY :],
+            extremity_keypoints2d=pixels[:, 17 : 17 + NUM_EXTREMITY],
         )
+
+    def _photo_pixels(self, points: torch.Tensor) -> torch.Tensor:
+        """``(N, P, 3)`` root-relative points (metres) -> ``(N, P, 2)`` original-photo pixels
+        through the posterior's weak-perspective camera and crop."""
+        ndc = weak_perspective_project(points, self.camera.expand(points.shape[0], 3))
+        pixels = self.crop.crop_to_image(ndc_to_pixels(ndc, self.crop.size))
+        return torch.as_tensor(pixels, dtype=points.dtype)
 
     def mode(self) -> BodyMeshes:
         """The most likely body: modal rotations and the mean shape (N = 1)."""
