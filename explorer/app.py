@@ -805,19 +805,21 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         if view is None:
             return
         data = meshes_file(view.mode_vertices, view.sample_vertices, self.scene.faces, file_format)
-        client.send_file_download(f"hkpd_bodies.{file_format}", data)
+        client.send_file_download(f"hkpd_bodies.{file_format}", data, save_immediately=True)
 
     def _page_job(self, client: viser.ClientHandle) -> None:
         if self.result is None:
             self._notify(client, "No page saved", "Wait for the first prediction.", error=True)
             return
-        client.send_file_download("hkpd_scene.html", self.page_html().encode("utf-8"))
+        client.send_file_download(
+            "hkpd_scene.html", self.page_html().encode("utf-8"), save_immediately=True
+        )
 
     def _screenshot_job(self, client: viser.ClientHandle) -> None:
         height, width = SCREENSHOT_SIZE
         image = client.get_render(height, width, transport_format="png", timeout=30.0)
         self.last_screenshot = image
-        client.send_file_download("hkpd_explorer.png", png_bytes(image))
+        client.send_file_download("hkpd_explorer.png", png_bytes(image), save_immediately=True)
 
     def _job_failed(self, lane: str, error: BaseException) -> None:
         message = f"{type(error).__name__}: {error}"

@@ -82,7 +82,8 @@ class KeepingActions(_Base):
             self._notify(client, "No scene saved", str(error), error=True)
             return
         if client is not None:
-            client.send_file_download("hkpd_scene.json", scene.to_json().encode("utf-8"))
+            content = scene.to_json().encode("utf-8")
+            client.send_file_download("hkpd_scene.json", content, save_immediately=True)
 
     def load_scene_upload(
         self, name: str, content: bytes, client: viser.ClientHandle | None

@@ -30,6 +30,8 @@ if TYPE_CHECKING:
 
 HISTORY_LENGTH = 30
 """Edits kept for undo."""
+EDIT_PAUSE_S = 1.0
+"""Views closer together than this (a slider being dragged) are one edit for undo."""
 SETTLE_S = 5.0
 """Longest time the edits an undo sets off are not recorded as new edits."""
 DEFAULT_PHOTO = PhotoRef("the photo", demo="synthetic")
@@ -54,6 +56,7 @@ class SceneKeeper:
         self._history: list[SceneFile] = []
         self._index = -1
         self._settling: tuple[SceneFile, float] | None = None
+        self._recorded_at = -math.inf
 
     # ------------------------------------------------------------------ reading
     def settings(self) -> SceneFile:
@@ -109,7 +112,11 @@ class SceneKeeper:
 
     # ------------------------------------------------------------------ applying
     def apply(self, scene: SceneFile) -> None:
-        """Set every control to ``scene``'s settings (its photo must be the app's already)."""
+        """Set every control to ``scene``'s settings (its photo must be the app's already):
+        one edit for undo (the views in between are not kept)."""
+        with self._lock:
+            target = replace(scene, photo=DEFAULT_PHOTO, model=self.model)
+            self._settling, self._recorded_at = (target, time.monotonic()), -math.inf
         app = self.app
         photo, samples = app.panels.photo, app.panels.samples
         photo.evidence.value = scene.evidence
@@ -152,7 +159,14 @@ class SceneKeeper:
                 self._settling = None
             if self._history and self._history[self._index] == current:
                 return
+            now, last = time.monotonic(), self._recorded_at
+            self._recorded_at = now
             del self._history[self._index + 1 :]
+            if self._index > 0 and now - last < EDIT_PAUSE_S:
+                before, latest = self._history[self._index - 1], self._history[self._index]
+                if changed_controls(before, latest) == changed_controls(latest, current):
+                    self._history[self._index] = current  # still the same drag
+                    return
             self._history.append(current)
             del self._history[:-HISTORY_LENGTH]
             self._index = len(self._history) - 1
@@ -161,6 +175,7 @@ class SceneKeeper:
         """A new photo: its edits start afresh."""
         with self._lock:
             self._history, self._index, self._settling = [], -1, None
+            self._recorded_at = -math.inf
 
     def undo(self) -> bool:
         """Back to the edit before; False when there is none."""
@@ -177,7 +192,6 @@ class SceneKeeper:
                 return False
             self._index = index
             target = self._history[index]
-            self._settling = (target, time.monotonic())
         self.apply(replace(target, model=self.model))
         return True
 
@@ -214,6 +228,27 @@ DISPLAY_WORDS = {
     "selected_joint": lambda v: f"arrows at the {v.replace('_', ' ')}",
 }
 """How each display setting that differs from its default is named in the scene line."""
+
+
+def changed_controls(old: SceneFile, new: SceneFile) -> set[str]:
+    """The names of the settings that differ between two scenes (one per joint factor and
+    display setting)."""
+    names = {
+        name
+        for name in SceneFile.__dataclass_fields__
+        if name not in ("display", "joint_factors") and getattr(old, name) != getattr(new, name)
+    }
+    names |= {
+        f"display.{name}"
+        for name, value in vars(new.display).items()
+        if getattr(old.display, name) != value
+    }
+    joints = set(old.joint_factors) | set(new.joint_factors)
+    return names | {
+        f"joint.{joint}"
+        for joint in joints
+        if old.joint_factors.get(joint) != new.joint_factors.get(joint)
+    }
 
 
 def describe_differences(scene: SceneFile) -> list[str]:

@@ -37,8 +37,9 @@ class RecordingClient:
     def add_notification(self, title: str, body: str, **_kwargs) -> None:
         self.notifications.append((title, body))
 
-    def send_file_download(self, name: str, content: bytes) -> None:
+    def send_file_download(self, name: str, content: bytes, save_immediately=False) -> None:
         self.downloads[name] = content
+        self.saved_at_once = save_immediately  # one click downloads (no link to click)
 
 
 @pytest.fixture(scope="module")
@@ -126,6 +127,7 @@ def test_export_sends_the_mode_and_samples(app):
     assert app.wait_idle(30)
     scene = trimesh.load(io.BytesIO(client.downloads["hkpd_bodies.glb"]), file_type="glb")
     assert len(scene.geometry) == 1 + len(app.view.sample_vertices)
+    assert client.saved_at_once  # one click: the browser saves it, no link to click again
 
 
 class NoPersonProvider:

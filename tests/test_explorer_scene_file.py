@@ -15,7 +15,7 @@ import torch
 from PIL import Image
 from test_explorer_double import OcclusionAwareDouble
 
-from hkpd.explorer import cli
+from hkpd.explorer import cli, scene_keeping
 from hkpd.explorer.app import ExplorerApp
 from hkpd.explorer.html_page import CAPTION_ID
 from hkpd.explorer.scene_file import (
@@ -148,7 +148,8 @@ def test_a_reopened_scene_gives_bit_identical_posteriors(double, tmp_path) -> No
         second.stop()
 
 
-def test_undo_redo_and_reset_everything(double) -> None:
+def test_undo_redo_and_reset_everything(double, monkeypatch) -> None:
+    monkeypatch.setattr(scene_keeping, "EDIT_PAUSE_S", 0.0)  # every view is its own edit
     app = ExplorerApp(double, double.scene.image, port=0, num_samples=20, num_displayed=2)
     try:
         assert app.wait_idle(60)
@@ -172,5 +173,12 @@ def test_undo_redo_and_reset_everything(double) -> None:
         assert snapshot.occluders == () and max(snapshot.joint_exponents) == 0.0
         assert app.scene.heatmap.kind == "log"
         assert app.panels.keep.changes.content == "*Everything at its defaults.*"
+        # A slider dragged through many values without a pause is one edit.
+        monkeypatch.setattr(scene_keeping, "EDIT_PAUSE_S", 60.0)
+        for exponent in (-0.2, -0.4, -0.6, -0.8):
+            app.panels.concentration.joint_sliders["left_knee"].value = exponent
+            assert app.wait_idle(60)
+        assert app.undo() and app.wait_idle(60)
+        assert app.state.snapshot().joint_exponents == (0.0,) * 23
     finally:
         app.stop()
