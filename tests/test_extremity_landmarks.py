@@ -15,6 +15,7 @@ from hkpd.body.extremity_landmarks import (
     LANDMARK_NAMES,
     extremity_landmarks,
 )
+from hkpd.mirror_symmetry import BODY_MIRROR_PERMUTATION, reflect_rotations
 
 
 @pytest.fixture(scope="module")
@@ -102,3 +103,18 @@ def test_rows_selects_by_name(body: BodyModel) -> None:
     assert feet.weights.shape[0] == 2
     with pytest.raises(ValueError, match="unknown landmark names"):
         landmarks.rows(("left_elbow",))
+
+
+def test_mirror_order_matches_the_mirrored_body(body: BodyModel) -> None:
+    """The mirror image of a posed body (left and right joints swapped and reflected, as the
+    mirror reading does) has the landmarks x-negated and swapped by EXTREMITY_MIRROR."""
+    landmarks = extremity_landmarks(body)
+    generator = torch.Generator().manual_seed(0)
+    rotvecs = 0.4 * torch.randn(1, 23, 3, generator=generator, dtype=torch.float64)
+    pose = roma.rotvec_to_rotmat(rotvecs)
+    mirrored_pose = reflect_rotations(pose[:, list(BODY_MIRROR_PERMUTATION)])
+    betas = torch.zeros(1, body.num_betas, dtype=torch.float64)
+    points = landmarks.of_mesh(body(betas, pose).vertices)[0, : len(EXTREMITY_MIRROR)]
+    mirrored = landmarks.of_mesh(body(betas, mirrored_pose).vertices)[0, : len(EXTREMITY_MIRROR)]
+    flip = torch.tensor([-1.0, 1.0, 1.0], dtype=torch.float64)
+    torch.testing.assert_close(mirrored, points[list(EXTREMITY_MIRROR)] * flip, atol=0.012, rtol=0)

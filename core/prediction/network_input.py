@@ -54,6 +54,12 @@ class NetworkInput:
             None when the detector gave no mask (``KeypointDetector(segmentation=False)``).
         person_mask_known: ``(S, S)`` bool, False where the photo says neither body nor
             background (inside occluder boxes, outside the photo); None with ``person_mask``.
+        extremities_crop: ``(10, 2)`` BlazePose's hand and foot landmarks in crop pixels
+            (``detection.extremities`` mapped as the keypoints are); None when the detection
+            has none.
+        extremity_evidence: ``(10,)`` bool, the landmarks that are evidence by the keypoints'
+            rule (confident, inside the frame, under no occluder); None with
+            ``extremities_crop``. They feed the fit's landmark term, not the heatmaps.
     """
 
     proxy: torch.Tensor
@@ -68,6 +74,8 @@ class NetworkInput:
     crop_silhouette: np.ndarray | None = None
     person_mask: np.ndarray | None = None
     person_mask_known: np.ndarray | None = None
+    extremities_crop: np.ndarray | None = None
+    extremity_evidence: np.ndarray | None = None
 
     def __repr__(self) -> str:
         """One line of at most 200 characters: the proxy's shape, the crop, the evidence, the
@@ -160,6 +168,7 @@ def prepare_network_input(
     person_mask, person_mask_known = _mask_evidence(detection, crop, occluders)
     proxy_mask = _proxy_mask(image_proxy, crop_silhouette, person_mask, person_mask_known)
     proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, proxy_mask)
+    extremities_crop, extremity_evidence = _extremities(detection, crop, occluders, frame)
     return NetworkInput(
         proxy=proxy,
         crop=crop,
@@ -173,7 +182,22 @@ def prepare_network_input(
         crop_silhouette=crop_silhouette,
         person_mask=person_mask,
         person_mask_known=person_mask_known,
+        extremities_crop=extremities_crop,
+        extremity_evidence=extremity_evidence,
     )
+
+
+def _extremities(
+    detection: KeypointDetection, crop: CropTransform, occluders: Occluders, frame: np.ndarray
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The detection's hand and foot landmarks in ``crop`` and which are evidence (the
+    keypoints' rule, :func:`evidence_mask`); ``(None, None)`` without them."""
+    if detection.extremities is None or detection.extremity_confidences is None:
+        return None, None
+    shown = evidence_mask(
+        detection.extremities, detection.extremity_confidences, occluders, frame=frame
+    )
+    return crop.image_to_crop(np.asarray(detection.extremities, np.float64)), shown
 
 
 def _mask_evidence(

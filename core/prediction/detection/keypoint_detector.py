@@ -4,7 +4,9 @@
 (:mod:`hkpd.prediction.detection.blazepose`; the "full" landmark model, whose weights ship in
 ``hkpd.assets/blazepose``: nothing is downloaded). BlazePose finds 33 landmarks per person; the
 17 COCO keypoints are a subset (:data:`COCO_FROM_BLAZEPOSE`), and each keypoint's confidence is
-BlazePose's landmark visibility in [0, 1].
+BlazePose's landmark visibility in [0, 1]. The ten hand and foot landmarks (17-22 knuckles and
+thumbs, 29-32 heels and toes: :data:`hkpd.body.extremity_landmarks.BLAZEPOSE_EXTREMITY_INDICES`)
+are kept beside them as ``extremities``, with their own visibilities.
 
 - :meth:`KeypointDetector.detect`: one person, the detector's best; ``bbox`` restricts the
   search to one region (widened by :data:`SEARCH_BOX_PADDING`). When the detector finds nobody
@@ -25,6 +27,7 @@ from typing import Protocol
 
 import numpy as np
 
+from hkpd.body.extremity_landmarks import BLAZEPOSE_EXTREMITY_INDICES
 from hkpd.prediction.detection.blazepose import (
     POSE_PRESENCE_THRESHOLD,
     REGION_SCALE,
@@ -115,6 +118,12 @@ class KeypointDetection:
         person_mask: BlazePose's segmentation of this person, mapped to the original photo
             (:class:`PersonMask`: ``in_photo()``, ``in_frame(...)``); None when the detector
             was made with ``segmentation=False``.
+        extremities: ``(10, 2)`` float64 BlazePose's hand and foot landmarks (pinky, index,
+            thumb, heel, foot index; left then right of each: ``BLAZEPOSE_EXTREMITY_NAMES``) in
+            original-photo pixels, mapped as the keypoints are; None when not known (a
+            detection made by hand from 17 keypoints).
+        extremity_confidences: ``(10,)`` float64 in [0, 1], their visibilities; None with
+            ``extremities``.
     """
 
     keypoints: np.ndarray
@@ -127,6 +136,8 @@ class KeypointDetection:
     detector_score: float | None = None
     presence: float | None = None
     person_mask: PersonMask | None = None
+    extremities: np.ndarray | None = None
+    extremity_confidences: np.ndarray | None = None
 
     def __repr__(self) -> str:
         """One line of at most 200 characters: how many keypoints are confident, the person's
@@ -445,6 +456,10 @@ def _to_detection(
         detector_score=score,
         presence=found.presence,
         person_mask=person_mask,
+        extremities=original[list(BLAZEPOSE_EXTREMITY_INDICES)],
+        extremity_confidences=np.clip(
+            found.visibility[list(BLAZEPOSE_EXTREMITY_INDICES)], 0.0, 1.0
+        ),
     )
 
 
