@@ -9,7 +9,6 @@ that need one.
 from __future__ import annotations
 
 import json
-import math
 import shutil
 from types import SimpleNamespace
 
@@ -194,19 +193,31 @@ def test_stated_values_reach_the_posterior_and_are_reported(runs):
     assert np.isfinite(arrays["sex_shape_means"][1]).all()
 
 
-def test_the_same_person_shape_says_what_was_stated_and_how_it_counts(runs):
-    shape = json.loads((runs["root"] / "stated" / "same_person_shape" / "shape.json").read_text())
+def test_the_same_person_shape_counts_the_stated_values_once(runs):
+    folder = runs["root"] / "stated" / "same_person_shape"
+    shape = json.loads((folder / "shape.json").read_text())
     assert shape["count"] == 2
     assert shape["photo_sex_probabilities"] == [{"female": 0.0, "male": 1.0}] * 2
-    assert shape["stated"]["sex"] == "male"
-    assert "once per photo" in shape["stated_note"]
-    photo_height = _summary(runs, "stated")["measurements"]["height_m"]
-    height = shape["measurements"]["height_m"]
-    assert abs(height["mean"] - photo_height["mean"]) < 0.005
-    # Two copies of one photo: the product halves the variance (the stated height counted
-    # twice, as the note says).
-    assert height["std"] == pytest.approx(photo_height["std"] / math.sqrt(2), rel=0.15)
+    assert shape["sex_probabilities"] == {"female": 0.0, "male": 1.0}
+    assert shape["drawn_sex"] == "male" and shape["stated"]["sex"] == "male"
+    assert "counted once" in shape["method"]
     assert list(shape["measurements"]) == list(MEASUREMENT_NAMES)
+    photo = _summary(runs, "stated")["measurements"]
+    height, mass = shape["measurements"]["height_m"], shape["measurements"]["mass_kg"]
+    # Two copies of one photo: the stated height (1 cm) and mass (2 kg) count once, not twice
+    # (which would give 0.71 cm and 1.41 kg); what the photos alone say is halved in variance.
+    assert abs(height["mean"] - 1.85) < 0.015 and 0.008 < height["std"] <= 0.0105
+    assert abs(mass["mean"] - 80.0) < 3.0 and 1.6 < mass["std"] <= 2.05
+    assert shape["measurements"]["chest_m"]["std"] < photo["chest_m"]["std"]
+    arrays = np.load(folder / "shape.npz")
+    np.testing.assert_array_equal(arrays["sex_probabilities"], [0.0, 1.0])
+    assert arrays["sex_shape_covariances"].shape == (2, 10, 10)
+    np.testing.assert_allclose(arrays["betas_mean"], arrays["sex_shape_means"][1], atol=1e-5)
+    np.testing.assert_allclose(
+        arrays["measurement_mean"],
+        [shape["measurements"][name]["mean"] for name in MEASUREMENT_NAMES],
+        rtol=1e-5,
+    )
 
 
 def test_the_networks_own_posterior_has_no_sexes_but_measurements(runs):

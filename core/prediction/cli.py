@@ -29,8 +29,10 @@ it writes into ``DIR/<image stem>/``:
 
 With ``--same-person`` the photos show one person, and ``DIR/same_person_shape/`` also gets
 the shape combined from all photos that succeeded (the precision-weighted product of their shape
-Gaussians; :mod:`hkpd.prediction.exports.combined_shape` lists its files): the T-pose mesh, the
-same mesh coloured by shape uncertainty, ``shape.npz`` and ``shape.json``.
+Gaussians, per sex with sex as a latent, a stated value counted once:
+:mod:`hkpd.prediction.same_person`; :mod:`hkpd.prediction.exports.combined_shape` lists its
+files): the T-pose mesh, the same mesh coloured by shape uncertainty, ``shape.npz`` and
+``shape.json``.
 
 Mesh files are in a Y-up display frame (``(x, -y, -z)`` of the camera-aligned body frame; see
 :mod:`hkpd.prediction.exports.writers`). A photo that fails (missing, not an image, no person) is
@@ -54,7 +56,6 @@ import numpy as np
 import torch
 from PIL import Image
 
-from hkpd.body.measurements import body_measurer
 from hkpd.interrupts import deferred_interrupts, interrupted, raise_if_interrupted
 from hkpd.prediction.body_flags import MEASUREMENT_FLAGS, add_body_arguments, stated_body
 from hkpd.prediction.exports.body_summary import body_arrays, body_summary, posterior_caption
@@ -73,8 +74,7 @@ from hkpd.prediction.exports.writers import (
     write_person_mask,
 )
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
-from hkpd.prediction.sex_latent import gaussian_measurements
-from hkpd.prediction.shape_combination import combine_shape_tensors
+from hkpd.prediction.same_person import PhotoShape, combine_photo_shapes, combined_measurements
 
 if TYPE_CHECKING:
     from hkpd.conditioning import StatedBody
@@ -259,9 +259,7 @@ class PhotoResult:
     seconds: float = 0.0
     person_box: tuple[float, ...] | None = None
     note: str | None = None
-    shape_mean: torch.Tensor | None = None
-    shape_std: torch.Tensor | None = None
-    sex_probabilities: dict[str, float] | None = None
+    shape: PhotoShape | None = None
 
 
 def _timed(timings: dict[str, float], name: str, start: float) -> float:
@@ -341,9 +339,7 @@ def predict_photo(
         seconds=timings["total_s"],
         person_box=tuple(float(v) for v in posterior.network_input.detection.person_box),
         note=_photo_note(posterior, silhouette),
-        shape_mean=posterior.shape_mean.detach().cpu(),
-        shape_std=posterior.shape_std.detach().cpu(),
-        sex_probabilities=posterior.sex_probabilities,
+        shape=PhotoShape.of(posterior),
     )
 
 
@@ -812,20 +808,21 @@ def _combine_into(
     """Write the shape combined from the photos that succeeded into ``folder`` (atomically)
     and say what was written, for the final line (a failure is also printed to stderr).
 
-    ``stated``: what every photo's shape was conditioned on (said in ``shape.json``)."""
-    done = [result for result in results if result.error is None and result.shape_mean is not None]
+    With sex as a latent the photos are combined per sex, a stated value counted once
+    (:func:`hkpd.prediction.same_person.combine_photo_shapes`); ``stated`` is said in
+    ``shape.json``."""
+    done = [result for result in results if result.error is None and result.shape is not None]
     if not done:
         return "no combined shape (no photo succeeded)"
-    means = torch.stack([result.shape_mean for result in done])
-    stds = torch.stack([result.shape_std for result in done])
+    shapes = [result.shape for result in done if result.shape is not None]
+    means = torch.stack([shape.shape_mean for shape in shapes])
+    stds = torch.stack([shape.shape_std for shape in shapes])
     try:
-        combined = combine_shape_tensors(means, stds, predictor.body, "product")
-        baseline = combine_shape_tensors(means, stds, predictor.body, "mean")
+        combined = combine_photo_shapes(shapes, predictor.body, "product")
+        baseline = combine_photo_shapes(shapes, predictor.body, "mean")
         about = CombinedBody(
-            measurements=gaussian_measurements(
-                body_measurer(predictor.body), combined.betas_mean, combined.betas_std
-            ),
-            photo_sex_probabilities=tuple(result.sex_probabilities for result in done),
+            measurements=combined_measurements(combined, predictor.body),
+            photo_sex_probabilities=tuple(shape.sex_probabilities for shape in shapes),
             stated=stated,
         )
         files = _written_atomically(

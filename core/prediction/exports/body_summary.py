@@ -5,7 +5,8 @@ measurements with their stds, and what the user stated.
   ``"measurements"`` and ``"stated"``;
 - :func:`body_caption`: the overview's line, e.g. ``"body: male 87 %, height 1.78 ± 0.05 m,
   mass 73 ± 6 kg"`` (``"male (stated)"`` for a stated sex);
-- :func:`body_arrays`: the ``prediction.npz`` arrays of the sexes and measurements.
+- :func:`body_arrays`: the ``prediction.npz`` arrays of the sexes and measurements
+  (:func:`sex_arrays`, :func:`measurement_arrays`; ``--same-person``'s ``shape.npz`` too).
 
 Measurements are those of :meth:`hkpd.prediction.posterior.BodyPosterior.measurements`
 (metres, kilograms; :mod:`hkpd.body.measurements` says where each is taken).
@@ -24,6 +25,7 @@ from hkpd.body.measurements import MEASUREMENT_NAMES
 if TYPE_CHECKING:
     from hkpd.conditioning import StatedBody
     from hkpd.prediction.posterior import BodyPosterior
+    from hkpd.prediction.sex_latent import SexShapes
 
 Measurements = Mapping[str, tuple[float, float]]
 """``{name: (mean, std)}`` as :meth:`BodyPosterior.measurements` returns it."""
@@ -117,35 +119,41 @@ def posterior_caption(posterior: BodyPosterior, measurements: Measurements) -> s
     return body_caption(posterior.sex_probabilities, stated, measurements)
 
 
-def body_arrays(posterior: BodyPosterior, measurements: Measurements) -> dict[str, np.ndarray]:
-    """The ``prediction.npz`` arrays of the body's sexes and measurements.
-
-    Returns:
-        ``measurement_names (6,)`` str, ``measurement_mean (6,)``, ``measurement_std (6,)``
-        (metres, kilograms) and, with sexes, ``sex_names (2,)`` str (``female``, ``male``),
-        ``sex_probabilities (2,)``, ``sex_stated ()`` bool, ``sex_shape_means (2, K)`` and
-        ``sex_shape_covariances (2, K, K)`` (each sex's shape posterior; NaN for a sex that
-        was not fitted, i.e. the other one when the sex was stated).
-    """
-    arrays: dict[str, np.ndarray] = {
+def measurement_arrays(measurements: Measurements) -> dict[str, np.ndarray]:
+    """``measurement_names (6,)`` str, ``measurement_mean (6,)`` and ``measurement_std (6,)``
+    (metres, kilograms)."""
+    return {
         "measurement_names": np.asarray(MEASUREMENT_NAMES),
         "measurement_mean": np.asarray([measurements[n][0] for n in MEASUREMENT_NAMES]),
         "measurement_std": np.asarray([measurements[n][1] for n in MEASUREMENT_NAMES]),
     }
-    sexes = posterior.sexes
+
+
+def sex_arrays(sexes: SexShapes | None, size: int) -> dict[str, np.ndarray]:
+    """The arrays of sex as a latent (none when ``sexes`` is None): ``sex_names (2,)`` str
+    (``female``, ``male``), ``sex_probabilities (2,)``, ``sex_stated ()`` bool,
+    ``sex_shape_means (2, size)`` and ``sex_shape_covariances (2, size, size)`` (each sex's
+    shape Gaussian; NaN for a sex that was not fitted, i.e. the other one when the sex was
+    stated)."""
     if sexes is None:
-        return arrays
-    size = int(posterior.shape_mean.shape[-1])
+        return {}
     means = np.full((len(SEX_NAMES), size), np.nan)
     covariances = np.full((len(SEX_NAMES), size, size), np.nan)
     for index, sex in enumerate(SEX_NAMES):
         if sex in sexes.means:
             means[index] = sexes.means[sex].detach().cpu().double().numpy()
             covariances[index] = sexes.covariances[sex].detach().cpu().double().numpy()
-    return arrays | {
+    return {
         "sex_names": np.asarray(SEX_NAMES),
         "sex_probabilities": np.asarray([sexes.probabilities[sex] for sex in SEX_NAMES]),
         "sex_stated": np.bool_(sexes.stated),
         "sex_shape_means": means,
         "sex_shape_covariances": covariances,
     }
+
+
+def body_arrays(posterior: BodyPosterior, measurements: Measurements) -> dict[str, np.ndarray]:
+    """The ``prediction.npz`` arrays of the body: :func:`measurement_arrays` and, with sexes,
+    :func:`sex_arrays` (``K`` = the posterior's shape coefficients)."""
+    size = int(posterior.shape_mean.shape[-1])
+    return measurement_arrays(measurements) | sex_arrays(posterior.sexes, size)

@@ -11,9 +11,12 @@ Into one folder :func:`write_combined_shape` writes:
   ``tpose_vertices (V, 3)`` (camera-aligned body frame), ``uncertainty (V,)`` metres,
   ``faces (F, 3)``;
 - ``shape.json``: the same numbers (without the meshes), the photos, the method and the files;
-  with a :class:`CombinedBody`, also the combined shape's ``"measurements"`` (``{name: {"mean",
-  "std"}}``), each photo's ``"photo_sex_probabilities"`` and what was ``"stated"`` (with a note
-  on how the combination counts it).
+  with a :class:`CombinedBody`, also the combined ``"sex_probabilities"`` and ``"drawn_sex"``,
+  the combined shape's ``"measurements"`` (``{name: {"mean", "std"}}``), each photo's
+  ``"photo_sex_probabilities"`` and what was ``"stated"``. With sex as a latent the shape is
+  combined per sex (:mod:`hkpd.prediction.sex_combination`) and ``shape.npz`` also holds the
+  per-sex arrays of :func:`hkpd.prediction.exports.body_summary.sex_arrays` and the
+  measurements.
 """
 
 from __future__ import annotations
@@ -26,7 +29,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from hkpd.prediction.exports.body_summary import measurement_summary, stated_summary
+from hkpd.prediction.exports.body_summary import (
+    measurement_arrays,
+    measurement_summary,
+    sex_arrays,
+    stated_summary,
+)
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
 from hkpd.prediction.exports.writers import (
     ARRAY_FORMAT,
@@ -46,11 +54,10 @@ METHOD_NOTE = (
     "(1/std^2 = sum 1/std_i^2, mean = std^2 sum mean_i/std_i^2); the baseline averages the means"
 )
 
-STATED_NOTE = (
-    "every photo's shape was conditioned on the stated values (and on its more probable sex's "
-    "population prior); the product of the photos' shape Gaussians counts them once per photo, "
-    "so along the stated measurements the combined std is too small (the combination cannot "
-    "take stated values once yet)"
+SEX_METHOD_NOTE = (
+    "per sex: product of the photos' full-covariance shape Gaussians, the sexes' log-odds added, "
+    "a stated measurement counted once (hkpd.prediction.sex_combination); betas_mean/betas_std "
+    "are the more probable sex's; the baseline averages the photos' means"
 )
 
 
@@ -59,33 +66,31 @@ class CombinedBody:
     """What ``shape.json`` says about the combined body besides its shape coefficients.
 
     Attributes:
-        measurements: ``{name: (mean, std)}`` of the combined shape Gaussian (metres,
-            kilograms), or None.
-        photo_sex_probabilities: per combined photo, ``{"female": p, "male": 1 - p}`` or None;
-            each photo contributes the shape of its more probable sex.
-        stated: what every photo was conditioned on, or None.
+        measurements: ``{name: (mean, std)}`` of the combined shape (metres, kilograms), or
+            None.
+        photo_sex_probabilities: per combined photo, ``{"female": p, "male": 1 - p}`` or None.
+        stated: what every photo was given, or None.
     """
 
     measurements: Mapping[str, tuple[float, float]] | None = None
     photo_sex_probabilities: Sequence[Mapping[str, float] | None] = ()
     stated: StatedBody | None = None
 
-    def summary(self) -> dict[str, object]:
-        """The ``shape.json`` keys: ``"measurements"``, ``"photo_sex_probabilities"``,
-        ``"stated"`` and, when something was stated, ``"stated_note"``."""
-        stated = stated_summary(self.stated)
-        keys: dict[str, object] = {
+    def summary(self, combined: CombinedShape) -> dict[str, object]:
+        """The ``shape.json`` keys: ``"sex_probabilities"`` (the combined ones, or None),
+        ``"drawn_sex"``, ``"measurements"``, ``"photo_sex_probabilities"`` and ``"stated"``."""
+        sexes = combined.sexes
+        return {
+            "sex_probabilities": None if sexes is None else dict(sexes.probabilities),
+            "drawn_sex": None if sexes is None else sexes.most_probable,
             "measurements": None
             if self.measurements is None
             else measurement_summary(self.measurements),
             "photo_sex_probabilities": [
                 None if item is None else dict(item) for item in self.photo_sex_probabilities
             ],
-            "stated": stated,
+            "stated": stated_summary(self.stated),
         }
-        if stated is not None:
-            keys["stated_note"] = STATED_NOTE
-        return keys
 
 
 def write_combined_shape(
@@ -133,14 +138,16 @@ def write_combined_shape(
             "tpose_vertices": combined.tpose_vertices,
             "uncertainty": combined.vertex_uncertainty,
             "faces": combined.faces.to(torch.int32),
-        }
+        } | sex_arrays(combined.sexes, int(combined.betas_mean.shape[-1]))
+        if body is not None and body.measurements is not None:
+            arrays |= measurement_arrays(body.measurements)
         written.append(write_distribution_npz(folder / "shape.npz", arrays))
     summary_path = folder / "shape.json"
     files = [path.name for path in written] + [summary_path.name]
     summary = {
         "photos": [str(image) for image in images],
         "count": combined.count,
-        "method": METHOD_NOTE,
+        "method": METHOD_NOTE if combined.sexes is None else SEX_METHOD_NOTE,
         "betas_mean": combined.betas_mean,
         "betas_std": combined.betas_std,
         "mean_std": combined.mean_std,
@@ -161,6 +168,6 @@ def write_combined_shape(
         "files": files,
     }
     if body is not None:
-        summary |= body.summary()
+        summary |= body.summary(combined)
     write_json(summary_path, summary)
     return files
