@@ -16,7 +16,7 @@ import re
 from dataclasses import dataclass
 
 from hkpd.body.measurements import MEASUREMENT_NAMES
-from hkpd.prediction.body_flags import DEFAULT_STATED_STD, StatedBody, StatedValue
+from hkpd.stated_body import DEFAULT_STATED_STD, StatedBody, StatedValue
 
 FIELD_UNITS: dict[str, tuple[str, float]] = {
     "height_m": ("cm", 0.01),

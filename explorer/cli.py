@@ -17,7 +17,7 @@ existing OUT.html is kept unless ``--force``.
 
 ``--sex`` and the measurement flags (``--height``, ``--mass``, ``--chest``, ``--waist``,
 ``--hip``, ``--shoulder-width``, each ``VALUE [STD]``) are hkpd-predict's
-(:mod:`hkpd.prediction.body_flags`): they state what is known of the first photo's person, as
+(:mod:`hkpd.body_flags`): they state what is known of the first photo's person, as
 the Body section does, and are checked before the model loads.
 
 Start-up order: the heavy modules (torch, the model) are imported only once the arguments and
@@ -105,7 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --export-html or --save-scene: replace an existing file",
     )
     _add_scene_arguments(parser)
-    from hkpd.prediction.body_flags import add_body_arguments
+    from hkpd.body_flags import add_body_arguments
 
     add_body_arguments(parser)
     parser.add_argument(
@@ -246,8 +246,8 @@ def _model_name(args: argparse.Namespace) -> str:
 def _stated_body(args: argparse.Namespace) -> BodyStatement:
     """What ``--sex`` and the measurement flags state, checked before the model loads (a
     usage error names the flag)."""
+    from hkpd.body_flags import stated_body
     from hkpd.explorer.body_settings import BodyStatement
-    from hkpd.prediction.body_flags import stated_body
 
     try:
         stated = BodyStatement.from_stated(stated_body(args))

@@ -22,9 +22,9 @@ import numpy as np
 import torch
 
 from hkpd.explorer.body_settings import BodyStatement
-from hkpd.prediction.body_flags import StatedValue
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.predictor import Predictor, refuse_silhouette_model
+from hkpd.stated_body import StatedValue
 
 Box = tuple[float, float, float, float]
 

@@ -38,8 +38,8 @@ from hkpd.explorer.panels.status import source_text
 from hkpd.explorer.provider import PredictorProvider, body_arguments
 from hkpd.explorer.scene import MODE_COLOUR, SKIN_COLOUR
 from hkpd.explorer.state import ExplorerState
-from hkpd.prediction.body_flags import StatedBody
 from hkpd.prediction.sex_latent import SexShapes
+from hkpd.stated_body import StatedBody
 
 AUTOMATIC_FEMALE = 0.62
 

@@ -26,15 +26,20 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         "kinematic_tree": (),
         "uncertainty": (),
         "mirror_symmetry": ("kinematic_tree",),
+        "stated_body": (),
+        "body_flags": ("stated_body",),
         # the model
         "distributions": ("kinematic_tree",),
-        "body": ("assets", "coco_keypoints", "kinematic_tree"),
+        "body": ("assets", "coco_keypoints", "kinematic_tree", "stated_body"),
         "proxy": (),
         "rendering": ("camera_conventions",),
         "network": ("camera_conventions", "distributions", "kinematic_tree", "proxy"),
-        "conditioning": ("body", "camera_conventions", "coco_keypoints", "distributions"),
+        "conditioning": (
+            "body", "camera_conventions", "coco_keypoints", "distributions", "stated_body",
+        ),
         "prediction": (
-            "assets", "body", "camera_conventions", "coco_keypoints", "conditioning", "devices",
+            "assets", "body", "body_flags", "camera_conventions", "coco_keypoints",
+            "conditioning", "devices", "stated_body",
             "distributions", "interrupts", "kinematic_tree", "mirror_symmetry", "network",
             "proxy", "rendering", "uncertainty",
         ),
@@ -56,7 +61,8 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         ),
         # the browser app: the model and the prediction, never the training side
         "explorer": (
-            "assets", "body", "camera_conventions", "coco_keypoints", "distributions",
+            "assets", "body", "body_flags", "camera_conventions", "coco_keypoints",
+            "distributions", "stated_body",
             "interrupts", "kinematic_tree", "prediction", "rendering", "uncertainty",
         ),
         ROOT_PACKAGE: ("body", "prediction"),

@@ -18,8 +18,8 @@ from PIL import Image
 from test_predict_cli import checkpoint, fake_predictor_factory, scene  # noqa: F401 (fixtures)
 
 from hkpd.body.measurements import MEASUREMENT_NAMES
+from hkpd.body_flags import stated_body
 from hkpd.prediction import cli
-from hkpd.prediction.body_flags import stated_body
 from hkpd.prediction.exports.body_summary import body_caption
 from hkpd.prediction.exports.overview import BACKGROUND
 

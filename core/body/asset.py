@@ -25,6 +25,7 @@ import numpy as np
 
 from hkpd.coco_keypoints import COCO17_NAMES
 from hkpd.kinematic_tree import SMPL_JOINT_NAMES, validate_parents
+from hkpd.stated_body import SEX_NAMES
 
 NUM_JOINTS = 24
 """Joints of the kinematic tree (SMPL's 24)."""
@@ -68,9 +69,6 @@ SMPL_FIELDS = (
     "f",
 )
 """Keys of an SMPL model file that the conversion reads."""
-
-SEX_NAMES: tuple[str, ...] = ("female", "male")
-"""The two sexes of the sex-specific shape priors, in the order of their rows."""
 
 DEFAULT_SMPL_BETAS = 10
 """Shape coefficients kept from an SMPL file unless asked otherwise."""

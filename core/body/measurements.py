@@ -4,7 +4,7 @@ Every measurement is taken on the rest (T-pose) body of shape ``betas``, so it d
 on the pose, and is a smooth function of ``betas`` (linear for height and shoulder width,
 nearly so for the girths, cubic for mass), which lets a Gaussian over ``betas`` give each one a
 mean and a standard deviation by linearisation, and a stated value condition the Gaussian
-(:mod:`hkpd.conditioning.stated_body`). Where each is taken (``docs/shape.md``, "Measurements"):
+(:mod:`hkpd.stated_body`). Where each is taken (``docs/shape.md``, "Measurements"):
 
 - ``height_m``: the highest vertex of the head minus the lowest of the soles, the two vertices
   chosen on the mean body (metres).
@@ -28,15 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-MEASUREMENT_NAMES: tuple[str, ...] = (
-    "height_m",
-    "mass_kg",
-    "chest_m",
-    "waist_m",
-    "hip_m",
-    "shoulder_width_m",
-)
-"""The measurements, in the order of :class:`BodyMeasurer`'s output columns."""
+from hkpd.stated_body import MEASUREMENT_NAMES
 
 BODY_DENSITY_KG_PER_M3 = 980.0
 """Whole-body density used for mass: Anny's own (``anny.anthropometry``), which its

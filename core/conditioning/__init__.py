@@ -33,8 +33,8 @@ from hkpd.conditioning.silhouette_term import (
     SilhouetteEvidence,
     SilhouetteTerm,
 )
-from hkpd.conditioning.stated_body import StatedBody
 from hkpd.conditioning.surface_points import SurfaceSamples
+from hkpd.stated_body import StatedBody
 
 __all__ = [
     "EvidenceConfig",

@@ -9,7 +9,7 @@ Usage::
                  [--waist M [STD]] [--hip M [STD]] [--shoulder-width M [STD]]
 
 ``--sex`` and the measurement flags state what is known of the person
-(:mod:`hkpd.prediction.body_flags`); they condition the shape of every photo (and so of the
+(:mod:`hkpd.body_flags`); they condition the shape of every photo (and so of the
 combined shape) and need the evidence posterior.
 
 Folders are searched recursively for images (by extension), in sorted order. For every photo
@@ -56,8 +56,8 @@ import numpy as np
 import torch
 from PIL import Image
 
+from hkpd.body_flags import MEASUREMENT_FLAGS, add_body_arguments, stated_body
 from hkpd.interrupts import deferred_interrupts, interrupted, raise_if_interrupted
-from hkpd.prediction.body_flags import MEASUREMENT_FLAGS, add_body_arguments, stated_body
 from hkpd.prediction.exports.body_summary import body_arrays, body_summary, posterior_caption
 from hkpd.prediction.exports.combined_shape import CombinedBody, write_combined_shape
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale

@@ -41,7 +41,6 @@ from hkpd.conditioning import (
     SurfaceSamples,
     condition_on_keypoints,
 )
-from hkpd.conditioning.stated_body import StatedValue
 from hkpd.devices import resolve_device
 from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
@@ -58,6 +57,7 @@ from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, Read
 from hkpd.prediction.readings.upright_view import UprightView
 from hkpd.prediction.sex_fits import fit_each_sex, with_sex_shape
 from hkpd.proxy import build_proxy
+from hkpd.stated_body import StatedValue
 
 SHIPPED_MODEL = ("models", "hkpd_hierarchical.pt")
 """The pretrained weights inside the ``hkpd.assets`` package."""
@@ -200,7 +200,7 @@ class Predictor:
             measurements: what is known of the body, ``{name: value}`` or
                 ``{name: (value, std)}`` with names ``"height_m"``, ``"mass_kg"``,
                 ``"chest_m"``, ``"waist_m"``, ``"hip_m"``, ``"shoulder_width_m"`` (metres,
-                kilograms; default stds :data:`hkpd.conditioning.stated_body.DEFAULT_STATED_STD`):
+                kilograms; default stds :data:`hkpd.stated_body.DEFAULT_STATED_STD`):
                 evidence on the shape, weighed before the fit.
 
         Raises:

@@ -2,7 +2,7 @@
 
 ``--sex {female,male}`` and one flag per measurement, each ``VALUE [STD]`` (metres, or
 kilograms for ``--mass``; without a std the default of
-:data:`hkpd.conditioning.stated_body.DEFAULT_STATED_STD`, e.g. 1 cm and 1 kg)::
+:data:`hkpd.stated_body.DEFAULT_STATED_STD`, e.g. 1 cm and 1 kg)::
 
     --height 1.82            # 1.82 m, std 0.01 m
     --mass 80 2              # 80 kg, std 2 kg
@@ -19,8 +19,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
-from hkpd.body.asset import SEX_NAMES
-from hkpd.conditioning.stated_body import DEFAULT_STATED_STD, StatedBody, StatedValue
+from hkpd.stated_body import DEFAULT_STATED_STD, SEX_NAMES, StatedBody, StatedValue
 
 MEASUREMENT_FLAGS: dict[str, str] = {
     "height_m": "--height",

@@ -1,5 +1,8 @@
 """``StatedBody``: what the user knows about the person (sex, measurements), checked once.
 
+Torch-free on purpose: the command lines check ``--sex``/``--height``… before loading anything
+heavy (``hkpd.body_flags``).
+
 A stated sex skips the comparison of the sexes; a stated measurement is evidence on the shape
 (:func:`hkpd.conditioning.shape_prior.conditioned_on_measurements`). Values are metres and
 kilograms; each comes with a standard deviation, by default :data:`DEFAULT_STATED_STD`.
@@ -12,8 +15,19 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from numbers import Real
 
-from hkpd.body.asset import SEX_NAMES
-from hkpd.body.measurements import MEASUREMENT_NAMES
+SEX_NAMES: tuple[str, ...] = ("female", "male")
+"""The two sexes of the sex-specific shape priors, in the order of their rows."""
+
+MEASUREMENT_NAMES: tuple[str, ...] = (
+    "height_m",
+    "mass_kg",
+    "chest_m",
+    "waist_m",
+    "hip_m",
+    "shoulder_width_m",
+)
+"""The body measurements (:mod:`hkpd.body.measurements` says where each is taken), in the order
+of :class:`hkpd.body.measurements.BodyMeasurer`'s output columns."""
 
 DEFAULT_STATED_STD: dict[str, float] = {
     "height_m": 0.01,
