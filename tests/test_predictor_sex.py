@@ -104,3 +104,31 @@ def test_two_photos_combine_sexes_and_count_stated_values_once(predictor: Predic
     assert pair.probabilities["female"] == pytest.approx(p * p / (p * p + (1 - p) ** 2))
     with pytest.raises(ValueError, match="different stated values"):
         combine_shapes([automatic, stated], predictor.body)
+
+
+def test_log_prob_is_the_pose_density_plus_the_sex_mixture(automatic) -> None:
+    samples = automatic.sample(5, seed=3)
+    total = automatic.log_prob(samples.body_pose, samples.betas)
+    exact = automatic.distribution.to(torch.float64)
+    pose = exact.pose_distribution().log_prob(samples.body_pose.double())
+    sexes = automatic.sexes
+    mixture = torch.logsumexp(
+        torch.stack([
+            torch.log(torch.tensor(sexes.probabilities[s], dtype=torch.float64))
+            + torch.distributions.MultivariateNormal(
+                sexes.means[s].double(), sexes.covariances[s].double()
+            ).log_prob(samples.betas.double())
+            for s in ("female", "male")
+        ]),
+        dim=0,
+    )  # fmt: skip
+    assert total.shape == (5,)
+    assert torch.allclose(total, pose + mixture, atol=1e-6)
+
+
+def test_part_uncertainty_names_every_part_and_a_hidden_limb_spreads(predictor: Predictor) -> None:
+    posterior = predictor.predict(PHOTO)
+    parts = posterior.part_uncertainty(50)
+    assert set(parts) == set(predictor.body.part_names)
+    assert all(value > 0 for value in parts.values())
+    assert parts["left_wrist"] > parts["pelvis"]

@@ -26,6 +26,7 @@ from hkpd.body.measurements import body_measurer
 from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import BodyDistribution, KinematicMatrixFisher
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
+from hkpd.prediction.posterior_summaries import part_uncertainty, posterior_log_prob
 from hkpd.prediction.sex_latent import gaussian_measurements
 from hkpd.uncertainty import vertex_uncertainty
 
@@ -171,6 +172,31 @@ class BodyPosterior:
     def sex_probability(self) -> float | None:
         """The probability of :attr:`sex`."""
         return None if self.sexes is None else self.sexes.probabilities[self.sexes.most_probable]
+
+    def log_prob(self, body_pose: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
+        """``(N,)`` float64 log density of N bodies under this posterior, nats: the 23 joints'
+        hierarchical matrix-Fisher density (w.r.t. the Haar probability measure on each joint's
+        SO(3)) plus the shape's (w.r.t. Lebesgue measure on β): the mixture over the sexes
+        when sex is a latent, else the shape Gaussian. The global rotation and the camera are
+        point estimates and take no part (:mod:`hkpd.prediction.posterior_summaries`).
+
+        Args:
+            body_pose: ``(N, 23, 3, 3)`` relative joint rotations.
+            betas: ``(N, K)`` shape coefficients.
+        """
+        total = posterior_log_prob(self.distribution, body_pose, betas)
+        if self.sexes is None:
+            return total
+        diagonal = self.distribution.to(torch.float64).shape_distribution()
+        exact_betas = betas.to(torch.float64)
+        return total - diagonal.log_prob(exact_betas) + self.sexes.log_prob(exact_betas)
+
+    def part_uncertainty(self, num_samples: int = 100, seed: int | None = 0) -> dict[str, float]:
+        """``{part name: metres}``: the mean per-vertex uncertainty
+        (:meth:`vertex_uncertainty` of ``num_samples`` samples) of each body part's vertices
+        (the body model's ``part_names``; NaN for a part without vertices)."""
+        uncertainty = self.vertex_uncertainty(num_samples, seed=seed)
+        return part_uncertainty(uncertainty, self.body.part_labels, self.body.part_names)
 
     def measurements(self) -> dict[str, tuple[float, float]]:
         """``{name: (mean, std)}``: height, mass, chest, waist and hip girths and shoulder

@@ -66,6 +66,20 @@ class SexShapes:
             betas = torch.where(chosen[:, None], draws, betas)
         return betas
 
+    def log_prob(self, betas: torch.Tensor) -> torch.Tensor:
+        """``(N,)`` float64 log density of ``betas (N, K)`` under the mixture
+        ``Σ_s p_s N(β; μ_s, Σ_s)`` (Lebesgue measure on β; nats)."""
+        terms = []
+        for sex, probability in self.probabilities.items():
+            if probability <= 0 or sex not in self.means:
+                continue
+            gaussian = torch.distributions.MultivariateNormal(
+                self.means[sex].double().to(betas.device),
+                covariance_matrix=self.covariances[sex].double().to(betas.device),
+            )
+            terms.append(math.log(probability) + gaussian.log_prob(betas.double()))
+        return torch.logsumexp(torch.stack(terms), dim=0)
+
     def measurements(self, measurer: BodyMeasurer) -> dict[str, tuple[float, float]]:
         """``{name: (mean, std)}`` of the six measurements under the mixture, each sex's
         linearised at its mean, combined by the law of total variance."""
