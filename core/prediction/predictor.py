@@ -44,8 +44,8 @@ from hkpd.conditioning import (
 from hkpd.devices import resolve_device
 from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
-from hkpd.prediction.detection.keypoint_detector import KeypointDetector
-from hkpd.prediction.image_input import LoadedImage
+from hkpd.prediction.detection.keypoint_detector import KeypointDetector, people_by_size
+from hkpd.prediction.image_input import LoadedImage, load_image
 from hkpd.prediction.network_input import (
     NetworkInput,
     prepare_network_input,
@@ -350,6 +350,41 @@ class Predictor:
         if self._body64 is None:
             self._body64 = float64_body(self.body)
         return self._body64
+
+    def predict_many(
+        self,
+        photos: Sequence[str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage],
+        **options: object,
+    ) -> list[BodyPosterior]:
+        """:meth:`predict` of every photo, in order, with the same ``options`` (occluders,
+        evidence, sex, measurements, …). Raises as :meth:`predict` on the first photo that
+        fails; to keep going past bad photos, call :meth:`predict` per photo."""
+        return [self.predict(photo, **options) for photo in photos]  # type: ignore[arg-type]
+
+    def predict_all(
+        self,
+        image: str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage,
+        **options: object,
+    ) -> list[BodyPosterior]:
+        """One posterior per person the detector finds in ``image``, in the Person menu's
+        order (:func:`people_by_size`: larger people first), each predicted in its own box
+        with the same ``options`` as :meth:`predict` (``bbox`` is set per person).
+
+        Returns:
+            An empty list when nobody is found.
+
+        Raises:
+            ImageInputError: the image is missing, unreadable or unusable.
+            ValueError: ``options`` holds ``bbox`` (each person has their own).
+        """
+        if "bbox" in options:
+            raise ValueError("predict_all predicts every person in their own box: drop bbox")
+        loaded = load_image(image)
+        people = people_by_size(self.detector.detect_all(loaded))
+        return [
+            self.predict(loaded, bbox=person.person_box, **options)  # type: ignore[arg-type]
+            for person in people
+        ]
 
     def close(self) -> None:
         """Release the detector's resources."""

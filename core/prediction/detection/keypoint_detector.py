@@ -165,6 +165,19 @@ class PoseRunner(Protocol):
     ) -> PoseLandmarks: ...
 
 
+def people_by_size(detections: Sequence[KeypointDetection]) -> list[KeypointDetection]:
+    """``detections`` ranked by the area of their person boxes, largest first (a stable sort:
+    equal sizes keep the detector's order), so people far smaller than the largest, e.g.
+    spectators, come after the rest: the order of the Person menu and of
+    :meth:`hkpd.prediction.Predictor.predict_all`."""
+
+    def area(detection: KeypointDetection) -> float:
+        x0, y0, x1, y1 = (float(v) for v in detection.person_box)
+        return max(x1 - x0, 0.0) * max(y1 - y0, 0.0)
+
+    return sorted(detections, key=area, reverse=True)
+
+
 class KeypointDetector:
     """BlazePose keypoint detector; the models are loaded on first use and reused.
 
