@@ -164,7 +164,8 @@ def main() -> None:
         app.sampling_changed(app.state.set_joint_exponent("left_elbow", -0.05 * (i % 10 + 1)))
         app.wait_idle(30)
         done = time.perf_counter() - start
-        seconds, size = recorder.delivered_after(start, start + done - app.timings.draw)
+        pushed = start + done - app.timings.draw - app.timings.compare  # A's push began
+        seconds, size = recorder.delivered_after(start, pushed)
         if i >= 2:  # warm-up
             delivered.append(seconds)
             computed.append(done)
@@ -185,7 +186,7 @@ def main() -> None:
         app.occluders_changed(app.state.move_occluder(occluder.ident, moved))
         app.wait_idle(30)
         idle = time.perf_counter()
-        seconds, _ = recorder.delivered_after(start, idle - app.timings.draw)
+        seconds, _ = recorder.delivered_after(start, idle - app.timings.draw - app.timings.compare)
         occ_delivered.append(seconds)
         occ_predict.append(app.timings.predict)
 
@@ -199,7 +200,8 @@ def main() -> None:
     app.wait_idle(30)
     idle = time.perf_counter()
     burst_runs = app.worker.stats["sample"].run - runs_before
-    burst_tail, _ = recorder.delivered_after(last_event, idle - app.timings.draw)
+    pushed = idle - app.timings.draw - app.timings.compare
+    burst_tail, _ = recorder.delivered_after(last_event, pushed)
 
     # 4. Heatmap transport.
     view = app.view

@@ -101,6 +101,8 @@ class Timings:
     predict: float = 0.0
     sample: float = 0.0
     draw: float = 0.0
+    compare: float = 0.0
+    """B's sampling and drawing after A's (0 without a comparison)."""
 
 
 class ExplorerApp(KeepingActions, BodyAppActions):

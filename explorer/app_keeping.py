@@ -9,6 +9,7 @@ prediction of A and sampled with every view of A (:mod:`hkpd.explorer.compare`).
 
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -52,6 +53,7 @@ class KeepingActions(_Base):
     def _show_compare(self, snapshot: StateSnapshot, view: PosteriorView) -> None:
         """B's view for ``view`` (A's), drawn in B's columns; the scene line and undo history
         follow every view."""
+        started = time.perf_counter()
         setting = self.compare.setting
         view_b = None if setting is None else self.compare.compute(snapshot, view)
         was_shown = self.compare_columns.shown
@@ -62,9 +64,10 @@ class KeepingActions(_Base):
         else:
             self.compare_columns.show(
                 view_b, self.scene.faces, self.scene.heatmap, setting.label, self.scene.titles_top,
-                self.scene.show_samples,
+                self.scene.show_samples, same_bodies=self.compare.reused,
             )  # fmt: skip
             self.panels.compare.numbers.content = compare_table(view, view_b)
+        self.timings.compare = time.perf_counter() - started
         if was_shown != self.compare_columns.shown:
             with self._lock:
                 placement = self._framed

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hkpd.explorer.posterior_view import PosteriorView, compute_view
+from hkpd.explorer.posterior_view import MIN_BASELINE_M, PosteriorView, compute_view
 from hkpd.explorer.provider import (
     Box,
     PosteriorProvider,
@@ -90,6 +90,15 @@ def parse_compare(text: str) -> CompareSetting:
     )
 
 
+def _sampling_key(snapshot: StateSnapshot) -> tuple:
+    """What a view's draw depends on besides the posterior (not the sampling version, which
+    every slider of A moves)."""
+    return (
+        snapshot.joint_exponents, snapshot.global_exponent, snapshot.shape_std_exponent,
+        snapshot.num_samples, snapshot.num_displayed, snapshot.seed, snapshot.selected_joint,
+    )  # fmt: skip
+
+
 def _load_model(path: str) -> PosteriorProvider:
     return PredictorProvider(path, device="cpu")
 
@@ -120,6 +129,10 @@ class Comparison:
         self._prediction: ComparePrediction | None = None
         self._view: PosteriorView | None = None
         self._error: str | None = None
+        self._view_of: tuple[ComparePrediction, tuple] | None = None
+        """The prediction and sampling key of :attr:`view`."""
+        self.reused = False
+        """The last :meth:`compute` kept B's draw (only the ratio to A changed)."""
 
     @property
     def error(self) -> str | None:
@@ -217,10 +230,20 @@ class Comparison:
                 global_exponent=0.0,
                 shape_std_exponent=0.0,
             )
-        view = compute_view(prediction.posterior, snapshot, view_a.uncertainty)
+        key = _sampling_key(snapshot)
+        with self._lock:
+            of = self._view_of
+            same = of is not None and of[0] is prediction and of[1] == key
+            cached = self._view if same else None
+        if cached is None:  # B's draw changed (a slider B follows, the seed, a new prediction)
+            view = compute_view(prediction.posterior, snapshot, view_a.uncertainty)
+        else:  # only A moved (default-concentrations): the same B, a new ratio
+            ratio = cached.uncertainty / np.maximum(view_a.uncertainty, MIN_BASELINE_M)
+            view = replace(cached, change_ratio=ratio)
+        self.reused = cached is not None
         with self._lock:
             if self._prediction is prediction:
-                self._view = view
+                self._view, self._view_of = view, (prediction, key)
         return view
 
     def _model(self, path: str) -> PosteriorProvider:

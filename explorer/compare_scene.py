@@ -52,6 +52,7 @@ class CompareColumns:
         self._lock = threading.Lock()
         self._nodes: dict[str, viser.SceneNodeHandle] = {}
         self._samples: list[viser.MeshHandle] = []
+        self._samples_shown = True
         self.shown = False
 
     def show(
@@ -62,8 +63,10 @@ class CompareColumns:
         label: str,
         titles_top: float,
         show_samples: bool = True,
+        same_bodies: bool = False,
     ) -> None:
-        """Draw B's ``view`` (faces ``(F, 3)``) coloured by ``scale``, titled with ``label``."""
+        """Draw B's ``view`` (faces ``(F, 3)``) coloured by ``scale``, titled with ``label``;
+        ``same_bodies``: B's meshes are drawn already (only its colours may change)."""
         scene = self.server.scene
         with self._lock, self.server.atomic():
             if not self.shown:
@@ -72,10 +75,8 @@ class CompareColumns:
                         f"/compare_{name}", wxyz=HALF_TURN_ABOUT_X, position=(x, 0.0, 0.0),
                         show_axes=False,
                     )  # fmt: skip
-            self._mesh("/compare_body/mode", view.mode_vertices, faces, MODE_COLOUR, 1.0)
-            self._mesh("/compare_heat/base", view.mode_vertices, faces, HEATMAP_BASE_COLOUR, 1.0)
-            self._show_samples(view.sample_vertices if show_samples else view.sample_vertices[:0],
-                               faces)  # fmt: skip
+            if not (same_bodies and self.shown and self._samples_shown == show_samples):
+                self._draw_bodies(view, faces, show_samples)
             values = view.change_ratio if scale.kind == "change" else view.uncertainty
             self._nodes["points"] = scene.add_point_cloud(
                 "/compare_heat/points", view.mode_vertices, scale.colours(values),
@@ -83,6 +84,14 @@ class CompareColumns:
             )  # fmt: skip
             self._titles(label, scale, titles_top)
             self.shown = True
+
+    def _draw_bodies(self, view: PosteriorView, faces: np.ndarray, show_samples: bool) -> None:
+        """B's most likely body (beside its samples, and under its colours) and samples."""
+        self._mesh("/compare_body/mode", view.mode_vertices, faces, MODE_COLOUR, 1.0)
+        self._mesh("/compare_heat/base", view.mode_vertices, faces, HEATMAP_BASE_COLOUR, 1.0)
+        shown = view.sample_vertices if show_samples else view.sample_vertices[:0]
+        self._show_samples(shown, faces)
+        self._samples_shown = show_samples
 
     def _titles(self, label: str, scale: HeatmapScale, top: float) -> None:
         body_title, heat_title = compare_titles(label, scale.kind)

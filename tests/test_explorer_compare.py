@@ -81,6 +81,11 @@ def test_default_concentrations_and_another_model(app) -> None:
     app.panels.compare.menu.value = "B: concentrations at 1×"
     assert app.wait_idle(60)
     assert forearm(app.compare.view, app.double) < forearm(app.view, app.double)
+    drawn = app.compare.view
+    app.panels.concentration.joint_sliders["left_elbow"].value = -0.5  # A moves, B does not
+    assert app.wait_idle(60) and app.compare.reused
+    assert app.compare.view.sample_vertices is drawn.sample_vertices
+    assert not np.array_equal(app.compare.view.change_ratio, drawn.change_ratio)
     app.panels.concentration.joint_sliders["left_elbow"].value = 0.0
     app.panels.compare.menu.value = MODEL
     app.panels.compare.checkpoint.value = __file__  # any existing file: the loader is stubbed
