@@ -58,6 +58,7 @@ from PIL import Image
 
 from hkpd.body_flags import MEASUREMENT_FLAGS, add_body_arguments, stated_body
 from hkpd.interrupts import deferred_interrupts, interrupted, raise_if_interrupted
+from hkpd.prediction.detection.keypoint_detector import people_by_size
 from hkpd.prediction.exports.body_summary import body_arrays, body_summary, posterior_caption
 from hkpd.prediction.exports.combined_shape import CombinedBody, write_combined_shape
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
@@ -79,7 +80,7 @@ from hkpd.prediction.same_person import PhotoShape, combine_photo_shapes, combin
 if TYPE_CHECKING:
     from hkpd.conditioning import StatedBody
     from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
-    from hkpd.prediction.predictor import Predictor
+from hkpd.prediction.predictor import Predictor
 
 _Written = TypeVar("_Written")
 
@@ -160,6 +161,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help=f"the photos show one person: also write the shape combined from all of them "
         f"(T-pose mesh, betas mean/std, shape uncertainty) into --out/{SAME_PERSON_FOLDER}",
+    )
+    parser.add_argument(
+        "--all-people",
+        action="store_true",
+        help="predict every person the detector finds in each photo, larger people first, "
+        "into one folder per person (--out/PHOTO/person_1, person_2, ...)",
     )
     parser.add_argument("--device", default="auto", help="auto (CUDA when available), cpu, cuda")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the samples")
@@ -576,14 +583,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     scale = UncertaintyColourScale()
     results: list[PhotoResult] = []
 
-    def predict_into(folder: Path, image: Path) -> PhotoResult:
+    def predict_into(folder: Path, image: Path, box: Sequence[float] | None = bbox) -> PhotoResult:
         return _predict_into(
             folder,
             predictor,
             image,
             samples=args.samples,
             formats=formats,
-            bbox=bbox,
+            bbox=box,
             seed=args.seed,
             model_path=str(model_path),
             scale=scale,
@@ -593,7 +600,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
 
     try:
-        _predict_all(predict_into, list(zip(images, names, strict=True)), args.out, results)
+        jobs = [(image, name, bbox) for image, name in zip(images, names, strict=True)]
+        if args.all_people:
+            jobs = _people_jobs(predictor, jobs, results)
+        _predict_all(predict_into, jobs, args.out, results)
         combined = None
         if args.same_person:
             combined = _combine_into(
@@ -627,6 +637,11 @@ def _checked_options(
         )
     if args.uncertainty_samples < 2:
         raise UsageError(f"--uncertainty-samples must be >= 2, got {args.uncertainty_samples}")
+    if args.all_people and (bbox is not None or args.same_person):
+        raise UsageError(
+            "--all-people predicts every person in their own box: it goes with neither --bbox "
+            "(one person) nor --same-person (one person in every photo)"
+        )
     check_out_folder(args.out)
     return formats, bbox
 
@@ -701,15 +716,41 @@ def _loaded_or_reported(args: argparse.Namespace) -> Predictor | None:
         return None
 
 
+def _people_jobs(
+    predictor: Predictor,
+    jobs: Sequence[tuple[Path, str, Sequence[float] | None]],
+    results: list[PhotoResult],
+) -> list[tuple[Path, str, Sequence[float] | None]]:
+    """``--all-people``: one job per person the detector finds in each photo, larger people
+    first (the Person menu's order), into ``NAME/person_K``; a photo whose people cannot be
+    looked for, or where nobody is found, is reported as failed."""
+    expanded = []
+    for image, name, _ in jobs:
+        raise_if_interrupted()
+        try:
+            people = people_by_size(predictor.detector.detect_all(image))
+        except _expected_errors() as error:
+            results.append(PhotoResult(image=image, error=_one_line(error)))
+            print(f"{PROG}: FAILED {image}: {_one_line(error)}", file=sys.stderr)
+            continue
+        if not people:
+            results.append(PhotoResult(image=image, error="no person was found"))
+            print(f"{PROG}: FAILED {image}: no person was found", file=sys.stderr)
+        for index, person in enumerate(people, start=1):
+            box = tuple(float(v) for v in person.person_box)
+            expanded.append((image, f"{name}/person_{index}", box))
+    return expanded
+
+
 def _predict_all(
-    predict_into: Callable[[Path, Path], PhotoResult],
-    photos: Sequence[tuple[Path, str]],
+    predict_into: Callable[[Path, Path, Sequence[float] | None], PhotoResult],
+    photos: Sequence[tuple[Path, str, Sequence[float] | None]],
     out: Path,
     results: list[PhotoResult],
 ) -> None:
-    """``predict_into(out / name, image)`` for every ``(image, name)``, appending each result
-    to ``results`` and reporting it on one line (a photo that fails is reported and
-    skipped)."""
+    """``predict_into(out / name, image, bbox)`` for every ``(image, name, bbox)``, appending
+    each result to ``results`` and reporting it on one line (a photo that fails is reported
+    and skipped)."""
     from tqdm import tqdm
 
     expected = _expected_errors()
@@ -717,10 +758,10 @@ def _predict_all(
     try:
         with deferred_interrupts():  # a Ctrl-C while the bar is first drawn waits for it
             progress = tqdm(photos, desc=PROG, unit="photo", file=sys.stderr)
-        for image, name in progress:
+        for image, name, box in progress:
             raise_if_interrupted()  # a Ctrl-C some library caught during the last photo
             try:
-                result = predict_into(out / name, image)
+                result = predict_into(out / name, image, box)
             except expected as error:
                 result = PhotoResult(image=image, error=_one_line(error))
             except Exception as error:  # unexpected: still one line, and go on
