@@ -198,3 +198,12 @@ def test_the_cook_faces_the_way_the_detector_labels_him(cook) -> None:
 def test_the_cook_is_read_seen_from_behind(cook) -> None:
     posterior, _ = cook
     assert not bool(faces_camera(posterior.global_orient.double()))
+
+
+@pytest.mark.skipif(not COOK_PHOTO.is_file(), reason="coco_mini (/work/shared/data) not available")
+def test_the_cook_turned_around_faces_away_and_turns_back(cook) -> None:
+    posterior, _ = cook
+    turned = posterior.turned_around()
+    assert turned.turned and not posterior.turned
+    assert not bool(faces_camera(turned.global_orient.double()))
+    assert turned.turned_around() is posterior

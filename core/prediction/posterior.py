@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
 from numbers import Real
 from typing import TYPE_CHECKING, Literal, Protocol
 
@@ -136,6 +136,8 @@ class BodyPosterior:
             and samples come from the mixture. None for the network's own posterior and for
             body models without sex priors.
         stated: what the user stated about the person (sex, measurements), or None.
+        turned: this is the turned-around reading (:meth:`turned_around`).
+        turner: makes the turned-around posterior (set by the predictor).
     """
 
     distribution: BodyDistribution
@@ -152,6 +154,27 @@ class BodyPosterior:
     mirror_read: bool = False
     sexes: SexShapes | None = None
     stated: StatedBody | None = None
+    turned: bool = False
+    turner: Callable[[BodyPosterior], BodyPosterior] | None = field(
+        default=None, repr=False, compare=False
+    )
+
+    def turned_around(self) -> BodyPosterior:
+        """The same keypoints fitted by a body facing the other way, left and right swapped
+        (:mod:`hkpd.prediction.turning`): the reading for a person seen from behind whom the
+        detector labelled as facing the camera, or the other way round. Turning twice gives
+        this posterior back (the same object). :attr:`turned` says which one this is.
+
+        Raises:
+            ValueError: this posterior cannot be turned (not an evidence posterior from
+                :meth:`hkpd.prediction.Predictor.predict`, or the turned fit failed).
+        """
+        if self.turner is None:
+            raise ValueError(
+                "this posterior cannot be turned around: only an evidence posterior from "
+                "Predictor.predict (evidence=True, the fit succeeded) can"
+            )
+        return self.turner(self)
 
     def __repr__(self) -> str:
         sex = "" if self.sexes is None else f", {self.sex} p={self.sex_probability:.2f}"

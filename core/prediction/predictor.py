@@ -18,6 +18,7 @@ third), unless ``upright=False``.
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import os
 import threading
@@ -56,6 +57,7 @@ from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
 from hkpd.prediction.readings.upright_view import UprightView
 from hkpd.prediction.sex_fits import fit_each_sex, with_sex_shape
+from hkpd.prediction.turning import turn_around
 from hkpd.proxy import build_proxy
 from hkpd.stated_body import StatedValue
 
@@ -272,6 +274,7 @@ class Predictor:
             evidence_fit=fit,
             sexes=sexes,
             stated=stated,
+            turner=functools.partial(turn_around, self),
         )
 
     def _stated(
@@ -344,6 +347,10 @@ class Predictor:
     def _on_device(self, tensor: torch.Tensor) -> torch.Tensor:
         """``tensor`` as the posterior holds it: float32 on the predictor's device."""
         return tensor.float().to(self.device)
+
+    def float64_body_model(self) -> BodyModel:
+        """The float64 CPU copy of the body model the fits use (made once)."""
+        return self._float64_body()
 
     def _float64_body(self) -> BodyModel:
         """A float64 CPU copy of the body model for the fit (made once)."""
