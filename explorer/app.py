@@ -35,6 +35,7 @@ from hkpd.explorer.compare import Comparison
 from hkpd.explorer.compare_scene import COMPARE_HEAT_OFFSET, CompareColumns
 from hkpd.explorer.export import meshes_file, png_bytes
 from hkpd.explorer.html_page import SceneCaption, describe_scene, scene_page
+from hkpd.explorer.notices import NOTICES
 from hkpd.explorer.panels import build_panels
 from hkpd.explorer.panels.same_person import ONLY_CURRENT_PHOTO
 from hkpd.explorer.panels.samples import DEFAULT_FIT_OPACITY
@@ -873,11 +874,8 @@ class ExplorerApp(KeepingActions, BodyAppActions):
     def _notify(
         client: viser.ClientHandle | None, title: str, body: str, error: bool = False
     ) -> None:
-        if client is None:
-            return
-        client.add_notification(
-            title, body, auto_close_seconds=8.0 if error else 3.0, color="red" if error else None
-        )
+        if client is not None:  # the tab's last notification of this title goes
+            NOTICES.show(client, title, body, error)
 
 
 def _baseline_key(token: int, person_box: Box | None, snapshot: StateSnapshot) -> BaselineKey:

@@ -29,3 +29,33 @@ def test_show_prints_nothing_and_returns_a_small_page(capfd, monkeypatch) -> Non
     assert len(repr(posterior)) <= MAX_REPR_CHARS
     rich.print("after show, the cell's console is the notebook's again")
     assert "after show" in cell.getvalue()
+
+
+class Notification:
+    def __init__(self, title: str) -> None:
+        self.title, self.removed = title, False
+
+    def remove(self) -> None:
+        self.removed = True
+
+
+class Tab:
+    client_id = 7
+
+    def __init__(self) -> None:
+        self.shown: list[Notification] = []
+
+    def add_notification(self, title: str, body: str, **_kwargs) -> Notification:
+        self.shown.append(Notification(title))
+        return self.shown[-1]
+
+
+def test_a_notification_replaces_the_last_one_of_its_title() -> None:
+    from hkpd.explorer.notices import Notices
+
+    notices, tab = Notices(), Tab()
+    for title in ("Weak keypoints", "Photo loaded", "Weak keypoints", "Weak keypoints"):
+        notices.show(tab, title, "…", error=title.startswith("Weak"))
+    removed = [(n.title, n.removed) for n in tab.shown]
+    assert removed == [("Weak keypoints", True), ("Photo loaded", False),
+                       ("Weak keypoints", True), ("Weak keypoints", False)]  # fmt: skip
