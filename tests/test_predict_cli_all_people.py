@@ -64,3 +64,29 @@ def test_all_people_writes_a_folder_per_person_larger_first(
 def test_all_people_refuses_one_person_options(tmp_path, extra, capsys) -> None:
     assert cli.main(["photo.jpg", "--out", str(tmp_path / "o"), "--all-people", *extra]) == 2
     assert "--all-people predicts every person" in capsys.readouterr().err
+
+
+def test_turn_around_writes_the_turned_reading(
+    tmp_path, scene, checkpoint, monkeypatch, capsys  # noqa: F811
+) -> None:  # fmt: skip
+    from hkpd.network.checkpoint import load_network
+    from hkpd.prediction.predictor import Predictor
+
+    def factory(model, device):
+        network, _ = load_network(model, "cpu")
+        return Predictor(network, "cpu", detector=TruthDetector(scene.keypoints2d))
+
+    photo = tmp_path / "person.png"
+    Image.fromarray(scene.image).save(photo)
+    common = ["--model", checkpoint, "--samples", "0", "--uncertainty-samples", "4",
+              "--format", "npz"]  # fmt: skip
+    summaries = {}
+    for name, extra in (("as_read", []), ("turned", ["--turn-around"])):
+        code, _, _ = _run([photo, "--out", tmp_path / name, *common, *extra], factory, monkeypatch)
+        assert code == 0
+        summary = json.loads((tmp_path / name / "person" / "summary.json").read_text())
+        summaries[name] = summary["posterior"]
+    assert not summaries["as_read"]["turned_around"] and summaries["turned"]["turned_around"]
+    args = ["photo.jpg", "--out", str(tmp_path / "o"), "--turn-around", "--no-evidence"]
+    assert cli.main(args) == 2
+    assert "--turn-around refits" in capsys.readouterr().err

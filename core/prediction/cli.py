@@ -163,6 +163,13 @@ def build_parser() -> argparse.ArgumentParser:
         f"(T-pose mesh, betas mean/std, shape uncertainty) into --out/{SAME_PERSON_FOLDER}",
     )
     parser.add_argument(
+        "--turn-around",
+        action="store_true",
+        help="write the turned-around reading: the same keypoints fitted by a body facing the "
+        "other way, left and right swapped (people seen from behind whom the detector labelled "
+        "as facing the camera; docs/evidence.md)",
+    )
+    parser.add_argument(
         "--all-people",
         action="store_true",
         help="predict every person the detector finds in each photo, larger people first, "
@@ -289,8 +296,10 @@ def predict_photo(
     uncertainty_samples: int = UNCERTAINTY_SAMPLES,
     evidence: bool = True,
     stated: StatedBody | None = None,
+    turn_around: bool = False,
 ) -> PhotoResult:
-    """Predict one photo and write its files into ``folder``.
+    """Predict one photo and write its files into ``folder`` (``turn_around``: its
+    turned-around reading, :meth:`BodyPosterior.turned_around`).
 
     ``stated``: what is known of the person (``--sex``, ``--height`` ...), passed to
     :meth:`Predictor.predict` as ``sex=`` and ``measurements=``.
@@ -301,6 +310,8 @@ def predict_photo(
     started = time.perf_counter()
     timings: dict[str, float] = {}
     posterior = predictor.predict(image, bbox=bbox, evidence=evidence, **_stated_arguments(stated))
+    if turn_around:
+        posterior = posterior.turned_around()
     clock = _timed(timings, "predict_s", started)
     mode = posterior.mode()
     drawn = posterior.sample(samples, seed=seed) if samples > 0 else None
@@ -510,6 +521,7 @@ def _posterior_summary(
         "fallback_reason": posterior.fallback_reason,
         "upright_tilt_degrees": posterior.upright_tilt_degrees,
         "mirror_read": posterior.mirror_read,
+        "turned_around": posterior.turned,
     }
     if posterior.evidence is not None:
         summary["evidence_keypoints"] = [int(i) for i in posterior.evidence.nonzero().flatten()]
@@ -597,6 +609,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             uncertainty_samples=args.uncertainty_samples,
             evidence=not args.no_evidence,
             stated=stated,
+            turn_around=args.turn_around,
         )
 
     try:
@@ -630,6 +643,11 @@ def _checked_options(
     bbox = parse_bbox(args.bbox)
     if args.samples < 0:
         raise UsageError(f"--samples must be >= 0, got {args.samples}")
+    if args.turn_around and args.no_evidence:
+        raise UsageError(
+            "--turn-around refits the keypoints facing the other way, which --no-evidence turns "
+            "off; give one of them"
+        )
     if args.silhouette_evidence and args.no_evidence:
         raise UsageError(
             "--silhouette-evidence weighs the person mask in the evidence fit, which "
