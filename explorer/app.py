@@ -568,6 +568,7 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         self.compare.clear()
         self.compare_columns.clear()
         self.panels.compare.numbers.content = ""
+        self.panels.teaching.axes_text.content = ""  # the last person's concentrations
         if new_photo:
             self._place_photo(image, plain_placement(image.shape[1], image.shape[0]), token)
         self.scene.show_occluders(self.state.snapshot().occluders)

@@ -69,6 +69,7 @@ def test_nobody_in_a_new_box_clears_the_last_persons_body():
         assert drawn <= nodes(explorer) and explorer.view is not None
         assert explorer.set_person_box(NobodyOutsideBoxes.EMPTY) and explorer.wait_idle(30)
         assert not drawn & nodes(explorer)  # no arrows line, no colour bar of the old body
+        assert explorer.panels.teaching.axes_text.content == ""  # nor its concentrations
         assert explorer.view is None and explorer.result is None
         assert "/photo" in nodes(explorer) and "No person was found" in (
             explorer.panels.status.line.content
