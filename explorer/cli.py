@@ -316,6 +316,10 @@ def _export_page(
         raise SystemExit(f"hkpd-explore: folder {target.parent} does not exist: create it first")
     scene, image, source = _scene_and_photo(args, person_box, occluders)
     assert image is not None
+    if stated.empty:  # a --scene's stated body, unless the flags state one
+        from hkpd.explorer.body_settings import BodyStatement
+
+        stated = BodyStatement.from_stated(scene.stated())
     provider = _build_provider(args)
 
     from hkpd.explorer.html_page import PageExistsError

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hkpd.body_flags import stated_body
 from hkpd.explorer.compare import parse_compare
 from hkpd.explorer.demo_photo import shipped_photo
 from hkpd.explorer.scene_file import (
@@ -39,7 +40,10 @@ def scene_from_arguments(
     Raises:
         SystemExit: a bad ``--concentration``, ``--compare`` or photo.
     """
+    stated = stated_body(args)
     return SceneFile(
+        sex=stated.sex,
+        measurements={name: [value, std] for name, (value, std) in stated.measurements.items()},
         photo=_photo_of(args, photo_name),
         person_box=person_box,
         occluders=tuple(OccluderEntry(box) for box in occluders),

@@ -26,6 +26,7 @@ from typing import Any
 from hkpd.explorer.colour_map import COLOURINGS
 from hkpd.explorer.state import CONCENTRATION_EXPONENT_RANGE, MAX_DISPLAYED_SAMPLES, MAX_SAMPLES
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
+from hkpd.stated_body import StatedBody
 
 FORMAT = "hkpd-explorer-scene"
 VERSION = 1
@@ -161,6 +162,9 @@ class SceneFile:
         seed: the sample draw's seed.
         model: the checkpoint path (None: the shipped model).
         compare: the compare setting (:mod:`hkpd.explorer.compare`), or None.
+        sex: the stated sex ("female", "male") or None (the photo decides).
+        measurements: stated measurements, ``{name: [value, std]}`` in metres and kilograms
+            (:data:`hkpd.stated_body.MEASUREMENT_NAMES`).
     """
 
     photo: PhotoRef
@@ -175,9 +179,17 @@ class SceneFile:
     seed: int = 0
     model: str | None = None
     compare: str | None = None
+    sex: str | None = None
+    measurements: dict[str, list[float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _check_settings(self)
+
+    def stated(self) -> StatedBody:
+        """The stated sex and measurements, checked."""
+        return StatedBody.of(
+            self.sex, {name: (float(v), float(s)) for name, (v, s) in self.measurements.items()}
+        )
 
     @property
     def active_boxes(self) -> list[Box]:
@@ -285,6 +297,9 @@ def _scene_from_dict(data: dict[str, Any]) -> SceneFile:
     )
     values["display"] = DisplaySettings(**values.get("display", {}))
     values["joint_factors"] = {str(k): float(v) for k, v in values.get("joint_factors", {}).items()}
+    values["measurements"] = {
+        str(name): [float(v) for v in pair] for name, pair in values.get("measurements", {}).items()
+    }
     return SceneFile(**values)
 
 
@@ -319,5 +334,9 @@ def _check_settings(scene: SceneFile) -> None:
         )
     if display.selected_joint not in BODY_JOINT_NAMES:
         raise SceneFileError(f"unknown joint {display.selected_joint!r}")
+    try:
+        scene.stated()
+    except (TypeError, ValueError) as error:
+        raise SceneFileError(f"stated body: {error}") from None
     if not isinstance(scene.seed, int) or scene.seed < 0:
         raise SceneFileError(f"the seed must be a whole number >= 0, got {scene.seed!r}")

@@ -14,6 +14,7 @@ import time
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
+from hkpd.explorer.body_settings import BodyStatement
 from hkpd.explorer.colour_map import COLOURINGS
 from hkpd.explorer.compare import parse_compare
 from hkpd.explorer.panels.teaching import joint_label
@@ -94,6 +95,8 @@ class SceneKeeper:
             seed=snapshot.seed,
             model=self.model,
             compare=None if setting is None else setting.text,
+            sex=snapshot.stated.sex,
+            measurements={name: [v, s] for name, (v, s) in snapshot.stated.values().items()},
         )
 
     def scene(self) -> SceneFile:
@@ -141,6 +144,8 @@ class SceneKeeper:
         samples.colouring.value = COLOURINGS[display.colouring]
         app.panels.teaching.joint.value = joint_label(display.selected_joint)
         app.set_compare(None if scene.compare is None else parse_compare(scene.compare))
+        if app.states_body:
+            app.state_body(BodyStatement.from_stated(scene.stated()))
 
     def reset(self) -> None:
         """Every setting back to its default (the photo stays; its boxes go)."""
@@ -274,4 +279,7 @@ def describe_differences(scene: SceneFile) -> list[str]:
         found.append(f"seed {scene.seed}")
     if scene.compare is not None:
         found.append(f"compare: {parse_compare(scene.compare).label}")
+    stated = BodyStatement.from_stated(scene.stated())
+    if not stated.empty:
+        found.append(f"stated: {stated.summary()}")
     return found

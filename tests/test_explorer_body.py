@@ -338,3 +338,19 @@ def test_compare_with_another_model_predicts_the_same_stated_person() -> None:
     comparison.predict(other.double.scene.image, state.snapshot(), result)
     assert comparison.error is None
     assert other.calls[-1] == (True, "female", {"height_m": (1.6, 0.01)})
+
+
+def test_a_saved_scene_keeps_the_stated_body_and_reopens_it(app) -> None:
+    stated = BodyStatement.of("female", {"mass_kg": (58.0, 1.5)})
+    app.state_body(stated)
+    assert app.wait_idle(30)
+    scene = app.keeper.settings()
+    assert scene.sex == "female" and scene.measurements == {"mass_kg": [58.0, 1.5]}
+    app.state_body(BodyStatement())
+    assert app.wait_idle(30)
+    app.keeper.apply(scene)
+    assert app.wait_idle(30)
+    assert app.state.stated == stated
+    assert last_call(app) == (True, "female", {"mass_kg": (58.0, 1.5)})
+    app.state_body(BodyStatement())
+    assert app.wait_idle(30)

@@ -182,3 +182,23 @@ def test_undo_redo_and_reset_everything(double, monkeypatch) -> None:
         assert app.state.snapshot().joint_exponents == (0.0,) * 23
     finally:
         app.stop()
+
+
+def test_a_scene_keeps_the_stated_body(tmp_path) -> None:
+    from hkpd.explorer.scene_keeping import DEFAULT_PHOTO as photo_ref
+
+    scene = SceneFile(photo=photo_ref, sex="male", measurements={"height_m": [1.85, 0.01]})
+    again = parse_scene(scene.to_json())
+    assert again.sex == "male" and again.measurements == {"height_m": [1.85, 0.01]}
+    assert again.stated().measurements == {"height_m": (1.85, 0.01)}
+    with pytest.raises(SceneFileError, match="stated body"):
+        SceneFile(photo=photo_ref, measurements={"height_m": [185.0, 1.0]})
+    with pytest.raises(SceneFileError, match="stated body"):
+        SceneFile(photo=photo_ref, sex="man")
+
+
+def test_the_stated_body_is_a_difference_from_the_defaults() -> None:
+    from hkpd.explorer.scene_keeping import DEFAULT_PHOTO as photo_ref
+
+    scene = SceneFile(photo=photo_ref, sex="female", measurements={"mass_kg": [60.0, 1.0]})
+    assert any(item.startswith("stated: female") for item in describe_differences(scene))
