@@ -104,12 +104,14 @@ class ExtremityLandmarks:
         return self.of_subset(vertices.index_select(-2, index))
 
     def rows(self, names: tuple[str, ...]) -> ExtremityLandmarks:
-        """The regressor of ``names`` alone (rows of :data:`LANDMARK_NAMES`), same vertices."""
+        """The regressor of ``names`` alone (rows of :data:`LANDMARK_NAMES`), on the vertices
+        those rows read."""
         unknown = [name for name in names if name not in LANDMARK_NAMES]
         if unknown:
             raise ValueError(f"unknown landmark names {unknown}; known: {LANDMARK_NAMES}")
-        keep = [LANDMARK_NAMES.index(name) for name in names]
-        return ExtremityLandmarks(self.vertex_indices, self.weights[keep])
+        weights = self.weights[[LANDMARK_NAMES.index(name) for name in names]]
+        used = (weights != 0).any(0)
+        return ExtremityLandmarks(self.vertex_indices[used], weights[:, used])
 
 
 _CACHE: weakref.WeakKeyDictionary[BodyModel, ExtremityLandmarks] = weakref.WeakKeyDictionary()

@@ -32,6 +32,7 @@ from PIL import Image
 
 from hkpd.assets import shipped_file
 from hkpd.body import BodyModel
+from hkpd.body.extremity_landmarks import BLAZEPOSE_EXTREMITY_NAMES, extremity_landmarks
 from hkpd.conditioning import (
     EvidenceConfig,
     EvidenceTerm,
@@ -42,6 +43,7 @@ from hkpd.conditioning import (
     SurfaceSamples,
     condition_on_keypoints,
 )
+from hkpd.conditioning.landmark_term import LandmarkEvidence, LandmarkTerm
 from hkpd.devices import resolve_device
 from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
@@ -94,6 +96,11 @@ class Predictor:
             measured on photos; a detector without segmentation, or a photo without a mask,
             falls back to the keypoints alone (``posterior.evidence_fit.terms`` says which
             evidence the fit used).
+        landmark_evidence: also condition on BlazePose's hand and foot landmarks (knuckles,
+            thumbs, heels, toes: :class:`hkpd.conditioning.landmark_term.LandmarkTerm`), the
+            ones confident and under no occluder; they say how the hands and feet are turned
+            (``docs/evidence.md``, "Hand and foot landmarks"). The attribute of the same name
+            switches it later.
 
     Attributes:
         network: the distribution network (eval mode, on ``device``).
@@ -112,6 +119,7 @@ class Predictor:
         evidence_config: EvidenceConfig | None = None,
         reading_config: ReadingConfig | None = None,
         silhouette_evidence: bool = False,
+        landmark_evidence: bool = True,
     ) -> None:
         self.device = torch.device(device)
         network = network.to(self.device).eval()
@@ -123,6 +131,7 @@ class Predictor:
         self.image_proxy = str(network.config.image_proxy)
         self.evidence_config = evidence_config or EvidenceConfig()
         self.silhouette_evidence = silhouette_evidence
+        self.landmark_evidence = landmark_evidence
         self._lock = threading.Lock()
         self._body64: BodyModel | None = None
         self._surface: SurfaceSamples | None = None
@@ -252,6 +261,7 @@ class Predictor:
         mask_terms = self._mask_terms(prepared)
         config = self.evidence_config
         config = config.for_mask_evidence() if mask_terms else config
+        mask_terms = mask_terms + self._landmark_terms(prepared)
         sexes = None
         if not self.body.has_sex_priors:
             fit = condition_on_keypoints(
@@ -343,6 +353,23 @@ class Predictor:
             self._surface = SurfaceSamples.of(self._float64_body())
         evidence = SilhouetteEvidence.from_arrays(prepared.person_mask, prepared.person_mask_known)
         return [SilhouetteTerm(evidence, self._surface)]
+
+    def _landmark_terms(self, prepared: NetworkInput) -> list[EvidenceTerm]:
+        """The hand and foot landmark term (:mod:`hkpd.conditioning.landmark_term`) when
+        switched on and the photo shows at least one of them as evidence; else none."""
+        shown = prepared.extremity_evidence
+        if not self.landmark_evidence or prepared.extremities_crop is None or shown is None:
+            return []
+        if not shown.any():
+            return []
+        evidence = LandmarkEvidence(
+            torch.as_tensor(prepared.extremities_crop, dtype=torch.float64),
+            torch.as_tensor(shown),
+            self.crop_size,
+        )
+        regressor = extremity_landmarks(self._float64_body()).rows(BLAZEPOSE_EXTREMITY_NAMES)
+        config = self.evidence_config
+        return [LandmarkTerm(evidence, regressor, config.keypoint_sigma, config.robust_scale)]
 
     def _on_device(self, tensor: torch.Tensor) -> torch.Tensor:
         """``tensor`` as the posterior holds it: float32 on the predictor's device."""
