@@ -11,6 +11,7 @@ evidence rows then fit the keypoints *and* BlazePose's person mask (issue 41's s
 ``--facings 1`` fits each start only as the network read it, not also half-turned
 (``EvidenceConfig.facings``; issue 42). By default the evidence posterior fits both sexes'
 shape priors (issue 49: two fits); ``--sex`` states one (one fit), for the comparison.
+``--no-landmark-evidence`` leaves out BlazePose's hand and foot landmarks (issue 52).
 
 Without ``--photos`` it uses the explorer's built-in demo photo (rendered by hkpd itself).
 Prints a markdown table; results are recorded in docs/benchmarks.md.
@@ -61,6 +62,11 @@ def main() -> None:
     parser.add_argument(
         "--sex", choices=("female", "male"), help="state the sex: one fit instead of two"
     )
+    parser.add_argument(
+        "--no-landmark-evidence",
+        action="store_true",
+        help="fit without BlazePose's hand and foot landmarks (issue 52's comparison)",
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     reading = ReadingConfig(mirror=not args.no_mirror_reading)
@@ -70,6 +76,7 @@ def main() -> None:
         reading_config=reading,
         silhouette_evidence=args.silhouette_evidence,
     )
+    predictor.landmark_evidence = not args.no_landmark_evidence
     if args.facings is not None:
         predictor.evidence_config = replace(predictor.evidence_config, facings=args.facings)
     if args.photos:
@@ -111,6 +118,7 @@ def main() -> None:
           f"{torch.__version__}, threads {args.threads}, network input "
           f"{predictor.crop_size} px, mirror reading {predictor.reading.config.mirror}, "
           f"silhouette evidence {predictor.silhouette_evidence}, "
+          f"landmark evidence {predictor.landmark_evidence}, "
           f"facings {predictor.evidence_config.facings}, "
           f"sexes fitted {1 if args.sex or not predictor.body.has_sex_priors else 2}, "
           f"{len(photos)} photo(s) x {args.repeats}")  # fmt: skip
