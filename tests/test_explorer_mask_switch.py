@@ -129,9 +129,9 @@ def test_the_predictor_provider_fits_the_mask_for_that_call_only() -> None:
     try:
         assert provider.fits_person_mask
         fitted = provider.predict(photo, [], silhouette=True).posterior
-        assert fitted.evidence_fit.terms == ("keypoints", "silhouette")
+        assert fitted.evidence_fit.terms == ("keypoints", "silhouette", "landmarks")
         plain = provider.predict(photo, []).posterior
-        assert plain.evidence_fit.terms == ("keypoints",)
+        assert plain.evidence_fit.terms == ("keypoints", "landmarks")
         assert not provider.predictor.silhouette_evidence
     finally:
         provider.predictor.close()

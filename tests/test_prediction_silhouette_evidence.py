@@ -19,7 +19,7 @@ def predictor():
 def test_the_mask_is_evidence_only_when_asked(predictor) -> None:
     photo = shipped_photo()
     keypoints_only = predictor.predict(photo)
-    assert keypoints_only.evidence_fit.terms == ("keypoints",)
+    assert keypoints_only.evidence_fit.terms == ("keypoints", "landmarks")
     predictor.silhouette_evidence = True
     try:
         with_mask = predictor.predict(photo)
@@ -27,7 +27,7 @@ def test_the_mask_is_evidence_only_when_asked(predictor) -> None:
         predictor.silhouette_evidence = False
     assert with_mask.conditioned
     assert with_mask.network_input.person_mask is not None
-    assert with_mask.evidence_fit.terms == ("keypoints", "silhouette")
+    assert with_mask.evidence_fit.terms == ("keypoints", "silhouette", "landmarks")
     # the mask moves the fit (shape and pose), within the same families
     assert not torch.equal(with_mask.shape_mean, keypoints_only.shape_mean)
     assert with_mask.F.shape == keypoints_only.F.shape
@@ -46,7 +46,7 @@ def test_without_a_mask_the_fit_falls_back_to_the_keypoints(predictor) -> None:
     finally:
         plain.close()
     assert posterior.network_input.person_mask is None
-    assert posterior.conditioned and posterior.evidence_fit.terms == ("keypoints",)
+    assert posterior.conditioned and posterior.evidence_fit.terms == ("keypoints", "landmarks")
 
 
 def test_a_mask_fit_marginalises_the_camera_for_the_shape(predictor) -> None:

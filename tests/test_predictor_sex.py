@@ -31,7 +31,7 @@ def test_automatic_posterior_weighs_both_sexes(automatic) -> None:
     assert set(probabilities) == {"female", "male"}
     assert probabilities["female"] + probabilities["male"] == pytest.approx(1.0)
     assert automatic.sex in ("female", "male")
-    assert set(automatic.evidence_fit.terms) == {"keypoints"}
+    assert set(automatic.evidence_fit.terms) == {"keypoints", "landmarks"}
     assert len(repr(automatic)) <= 200
 
 
