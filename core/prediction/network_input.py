@@ -168,7 +168,6 @@ def prepare_network_input(
     person_mask, person_mask_known = _mask_evidence(detection, crop, occluders)
     proxy_mask = _proxy_mask(image_proxy, crop_silhouette, person_mask, person_mask_known)
     proxy = build_proxy(crop_rgb, keypoints_crop, confidences, image_proxy, proxy_mask)
-    extremities_crop, extremity_evidence = _extremities(detection, crop, occluders, frame)
     return NetworkInput(
         proxy=proxy,
         crop=crop,
@@ -182,22 +181,23 @@ def prepare_network_input(
         crop_silhouette=crop_silhouette,
         person_mask=person_mask,
         person_mask_known=person_mask_known,
-        extremities_crop=extremities_crop,
-        extremity_evidence=extremity_evidence,
+        **_extremities(detection, crop, occluders, frame),
     )
 
 
 def _extremities(
     detection: KeypointDetection, crop: CropTransform, occluders: Occluders, frame: np.ndarray
-) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """The detection's hand and foot landmarks in ``crop`` and which are evidence (the
-    keypoints' rule, :func:`evidence_mask`); ``(None, None)`` without them."""
+) -> dict[str, np.ndarray | None]:
+    """:class:`NetworkInput`'s ``extremities_crop`` (the detection's hand and foot landmarks in
+    ``crop``) and ``extremity_evidence`` (the keypoints' rule, :func:`evidence_mask`); None
+    without them."""
     if detection.extremities is None or detection.extremity_confidences is None:
-        return None, None
+        return {"extremities_crop": None, "extremity_evidence": None}
     shown = evidence_mask(
         detection.extremities, detection.extremity_confidences, occluders, frame=frame
     )
-    return crop.image_to_crop(np.asarray(detection.extremities, np.float64)), shown
+    points = crop.image_to_crop(np.asarray(detection.extremities, np.float64))
+    return {"extremities_crop": points, "extremity_evidence": shown}
 
 
 def _mask_evidence(
