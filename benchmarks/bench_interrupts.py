@@ -7,10 +7,10 @@ one uninterrupted run's wall time (measured first), so the signals land during t
 the model load and the photos in proportion to how long each takes.
 
 The ``--late-runs`` runs aim at the end instead: one SIGINT at a uniformly random time between
-the moment the progress bar reaches 100 % (every photo done) and the end of the uninterrupted
-run (its closing report and Python's shutdown; the SIGINT is due before the process ends).
-There, before issue 51, Python had given SIGINT its default action back and the run ended by
-the signal (status -2, no line).
+the moment the progress bar reaches 100 % (every photo done) and the moment an uninterrupted
+run calls ``exit`` (its closing report and Python's shutdown; a signal due after it, while the
+kernel frees the process, counts as "finished first"). There, before issue 51, Python had
+given SIGINT its default action back and the run ended by the signal (status -2, no line).
 
 The programs run as their console scripts do (``hkpd.interrupts.run_program``), each with
 SIGINT's default action whatever this script inherited (``nohup ... &`` ignores it).
@@ -70,14 +70,31 @@ Outcome = tuple[int, str, float, bool]
 """Exit status, stderr, seconds (see each runner) and whether the SIGINT was sent."""
 
 
+PF_EXITING = 0x4
+"""Linux's per-task flag of a process that has called ``exit`` (``/proc/PID/stat`` field 9)."""
+
+
+def exiting(pid: int) -> bool:
+    """Whether process ``pid`` has already called ``exit`` (its status is decided; the kernel
+    may still be freeing its memory, tens of ms for hkpd-predict) or is gone."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return True
+    fields = stat[stat.rindex(")") + 2 :].split()
+    return fields[0] in "ZXx" or bool(int(fields[6]) & PF_EXITING)
+
+
 def interrupt_after(process: subprocess.Popen, after_s: float | None) -> bool:
-    """Send ``process`` one SIGINT after ``after_s`` seconds unless it ended before (None:
-    none); whether it was sent."""
+    """Send ``process`` one SIGINT after ``after_s`` seconds unless it ended (or called
+    ``exit``) before (None: none); whether it was sent."""
     if after_s is None:
         return False
     try:
         process.wait(timeout=after_s)
     except subprocess.TimeoutExpired:
+        if exiting(process.pid):
+            return False
         process.send_signal(signal.SIGINT)
         return True
     return False
@@ -94,17 +111,24 @@ def run(photos: Path, out: Path, after_s: float | None) -> Outcome:
 
 
 def run_to_the_end(photos: Path, out: Path, after_s: float | None) -> Outcome:
-    """hkpd-predict on ``photos``, SIGINT ``after_s`` after the progress bar is full (None:
-    none); the seconds are from the full bar to the process's end."""
+    """hkpd-predict on ``photos``, SIGINT ``after_s`` after the progress bar is full; the
+    seconds are from the full bar to the process's end. With ``after_s`` None no SIGINT, and
+    the seconds are from the full bar to the moment the process calls ``exit`` (polled every
+    millisecond): the window in which a Ctrl-C still reaches the program."""
     process = start(photos, out)
     seen = b""
     while ALL_DONE not in seen and process.poll() is None:
         seen += os.read(process.stderr.fileno(), 4096)
     full = time.perf_counter()
     sent = interrupt_after(process, after_s)
+    if after_s is None:
+        while not exiting(process.pid):
+            time.sleep(0.001)
+    until_exit = time.perf_counter() - full
     _, err = process.communicate(timeout=300)
     stderr = (seen + err).decode(errors="replace")
-    return process.returncode, stderr, time.perf_counter() - full, sent
+    seconds = until_exit if after_s is None else time.perf_counter() - full
+    return process.returncode, stderr, seconds, sent
 
 
 def problems(status: int, stderr: str, out: Path, interrupted: bool) -> list[str]:
@@ -150,7 +174,7 @@ def main() -> None:
         load = os.getloadavg()[0]
         print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, load average {load:.1f}; "
               f"{args.photos} photos, uninterrupted {full_s:.1f} s, of which {end_s:.3f} s "
-              f"from the full progress bar to the end; entry point {args.entry}")  # fmt: skip
+              f"from the full progress bar to its exit call; entry point {args.entry}")  # fmt: skip
         failures = table(
             "whole run", args.runs, lambda: float(rng.uniform(0.2, full_s)), photos, temp, run
         )
@@ -179,17 +203,22 @@ def table(
     print("| run | SIGINT at s | exit | stopped after s | folders left | problems |")
     print("|---:|---:|---:|---:|---:|---|")
     failures = 0
+    stderr_of_failures: list[str] = []
     for index in range(runs):
         out = Path(temp) / f"out_{title.split()[0]}_{index}"
         after_s = draw()
         status, stderr, seconds, sent = runner(photos, out, after_s)
-        finished = not sent  # it ended before the signal was due
+        finished = not sent  # it ended (or called exit) before the signal was due
         found = problems(status, stderr, out, interrupted=not finished)
         failures += bool(found)
+        if found:
+            stderr_of_failures.append(f"run {index}: ...{stderr[-800:]}")
         left = len(list(out.iterdir())) if out.exists() else 0
         print(f"| {index} | {after_s:.3f} | {status} | {seconds:.3f} | {left} | "
               f"{', '.join(found) or ('none (finished first)' if finished else 'none')} |",
               flush=True)  # fmt: skip
+    for text in stderr_of_failures:  # what went wrong, below the table
+        print(f"\n```\n{text.strip()}\n```")
     return failures
 
 

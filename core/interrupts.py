@@ -38,6 +38,7 @@ import os
 import signal
 import sys
 import threading
+import weakref
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -94,17 +95,34 @@ IMPORT_MACHINERY = "<frozen importlib"
 """The file name of Python's own import machinery's frames (``<frozen importlib._bootstrap>``)."""
 
 
+WEAKREF_MODULE = weakref.__file__
+"""The standard library's ``weakref.py``: its dictionaries' and ``finalize``'s callbacks run
+whenever an object is freed, and an exception raised in them is "unraisable"."""
+
+
+def _unraisable(frame: FrameType) -> bool:
+    """Whether a KeyboardInterrupt raised in ``frame`` would be printed as "Exception ignored
+    in ..." with a traceback and dropped: the import machinery's own code (a module lock's
+    weakref callback), a weakref callback of the standard library (``WeakKeyDictionary``'s
+    ``remove``, seen when hkpd-predict frees its predictor after the last photo), a ``__del__``."""
+    code = frame.f_code
+    return (
+        code.co_filename.startswith(IMPORT_MACHINERY)
+        or code.co_filename == WEAKREF_MODULE
+        or code.co_name == "__del__"
+    )
+
+
 def _remember_and_raise(signum: int, frame: FrameType | None) -> None:
     """The SIGINT handler of :func:`run_command`: remember the Ctrl-C, and raise it unless it
-    landed in the import machinery's own code. There it is only remembered, and
-    :func:`raise_if_interrupted` raises it once the import is done: a KeyboardInterrupt raised
-    in a module lock's weakref callback is printed as "Exception ignored in ..." with a
-    traceback and dropped, and one raised half-way through the machinery can leave a module
-    half-registered."""
+    landed where the exception would be dropped with a traceback (:func:`_unraisable`), or half
+    way through the import machinery, which can leave a module half-registered. There it is
+    only remembered: :func:`raise_if_interrupted` raises it at the command's next safe point,
+    and a command that returns after one still ends in status 130."""
     _received.set()
     if _program.finished:
         return  # the program is ending: its exit callback says it and sets the status
-    if frame is not None and frame.f_code.co_filename.startswith(IMPORT_MACHINERY):
+    if frame is not None and _unraisable(frame):
         return
     raise KeyboardInterrupt
 
@@ -235,13 +253,13 @@ def _exit_process() -> None:
     status = _program.status
     if status is None:
         return
-    if _received.is_set() and not _program.said:
-        interrupted(_program.program, " after the work was done")
-    if _received.is_set():
-        status = INTERRUPTED_STATUS
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError, AttributeError):  # closed, broken, None
             stream.flush()
+    if _received.is_set():  # checked last: a Ctrl-C after this is one after the end
+        if not _program.said:
+            interrupted(_program.program, " after the work was done")
+        status = INTERRUPTED_STATUS
     os._exit(status)
 
 
