@@ -68,8 +68,8 @@ class ScenePage:
 
     def __repr__(self) -> str:
         """A short line (the page itself is megabytes: never the default dataclass repr)."""
-        text = f"ScenePage({len(self.html) / 1e6:.1f} MB: {self.caption}"
-        return text if len(text) <= 199 else text[:197] + "…)"
+        text = f"ScenePage({len(self.html) / 1e6:.1f} MB: {self.caption})"
+        return text if len(text) <= 200 else text[:198] + "…)"
 
     def save(self, path: str | Path, force: bool = False) -> Path:
         """Write the page to ``path``; an existing file is kept unless ``force``."""

@@ -9,6 +9,7 @@ import torch
 
 from hkpd.conditioning import KeypointFit
 from hkpd.distributions import BodyDistribution
+from hkpd.explorer.saved_scene import ScenePage
 from hkpd.prediction import (
     CombinedShape,
     CropTransform,
@@ -162,3 +163,10 @@ def test_combined_shape_names_method_count_and_spread() -> None:
     text = short(combined)
     assert text.startswith("CombinedShape(method='product', count=3, betas=(10,)")
     assert "mean_std=0.250" in text and "vertices=(6890, 3)" in text and "0.0125" in text
+
+
+@pytest.mark.parametrize("caption", ["Warrior lunge, 100 samples", "a long caption " * 30])
+def test_scene_page_names_its_size_and_caption(caption) -> None:
+    text = short(ScenePage(html="x" * 2_500_000, caption=caption))
+    assert text.startswith("ScenePage(2.5 MB: ") and text.endswith(")")
+    assert caption[:100] in text
