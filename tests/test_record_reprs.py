@@ -19,6 +19,7 @@ from hkpd.prediction import (
     Occluders,
 )
 from hkpd.prediction.detection.person_mask import PersonMask
+from hkpd.prediction.sex_latent import SexShapes
 
 LIMIT = 200
 LONG_PATH = "/data/" + "a_very_long_folder_name/" * 12 + "the_photo.jpg"
@@ -170,3 +171,13 @@ def test_scene_page_names_its_size_and_caption(caption) -> None:
     text = short(ScenePage(html="x" * 2_500_000, caption=caption))
     assert text.startswith("ScenePage(2.5 MB: ") and text.endswith(")")
     assert caption[:100] in text
+
+
+def test_sex_shapes_name_the_probabilities() -> None:
+    shapes = SexShapes(
+        probabilities={"female": 0.623478, "male": 0.376522},
+        means={"female": torch.randn(10), "male": torch.randn(10)},
+        covariances={"female": torch.eye(10), "male": torch.eye(10)},
+    )
+    text = short(shapes)
+    assert text == "SexShapes(female=0.623, male=0.377, stated=False, means (10,))"

@@ -41,6 +41,14 @@ class SexShapes:
     stated: bool = False
     log_evidence: Mapping[str, float] | None = None
 
+    def __repr__(self) -> str:
+        """One line: each sex's probability, whether it was stated, the coefficients' count
+        (never the means and covariances: the default repr was 2.6 kB)."""
+        shown = ", ".join(f"{sex}={float(p):.3f}" for sex, p in self.probabilities.items())
+        sizes = {tuple(mean.shape) for mean in self.means.values()}
+        text = f"SexShapes({shown}, stated={self.stated}, means {', '.join(map(str, sizes))})"
+        return text if len(text) <= 200 else text[:198] + "…)"
+
     @property
     def most_probable(self) -> str:
         """The sex with the larger probability (female on a tie)."""
