@@ -6,7 +6,9 @@ BlazePose returns 33 landmarks; besides the 17 COCO keypoints it has three on ea
 tip of the longest toes). COCO-WholeBody adds six foot points (big toe, small toe, heel of
 each foot). Each landmark here is the mean of a few rest-mesh vertices (a regressor with
 equal weights), chosen once per body model from its rest geometry, part labels and joints
-(:func:`extremity_landmarks`; deterministic, about a millisecond), so no asset is rebuilt:
+(:func:`extremity_landmarks`; deterministic, about a millisecond), so no asset is rebuilt. Each
+rule picks a set of vertices; the landmark averages the :data:`MAX_VERTICES` of them nearest
+the set's centroid (cheap to pose in the fit):
 
 - The rest pose has y up, the body facing +z, its left side at +x; arms out along ±x, palms
   down, thumbs forward. Rules are written for the left side and applied to the right side's
@@ -78,6 +80,9 @@ _KNUCKLE_BAND = 0.015
 _THUMB_BAND = 0.02
 _SOLE_BAND = 0.04
 _TIP_BAND = 0.01
+MAX_VERTICES = 8
+"""Each landmark averages at most this many vertices: those of its rule's set nearest the set's
+centroid (the fit poses every vertex a landmark reads for each of its ~86 × B states)."""
 
 
 @dataclass(frozen=True)
@@ -151,6 +156,7 @@ def _choose(body: BodyModel) -> ExtremityLandmarks:
 
         sets.update(_hand_sets(side, flipped, part("hand"), hand_joint))
         sets.update(_foot_sets(side, flipped, part("ankle"), part("foot")))
+    sets = {name: _nearest_centre(vertices, chosen) for name, chosen in sets.items()}
     for side in ("left", "right"):
         sets[f"{side}_heel_wholebody"] = sets[f"{side}_heel"]
     order = [*BLAZEPOSE_EXTREMITY_NAMES] + [
@@ -162,6 +168,15 @@ def _choose(body: BodyModel) -> ExtremityLandmarks:
         columns = torch.searchsorted(used, sets[name])
         weights[row, columns] = 1.0 / sets[name].numel()
     return ExtremityLandmarks(used, weights)
+
+
+def _nearest_centre(vertices: torch.Tensor, chosen: torch.Tensor) -> torch.Tensor:
+    """The :data:`MAX_VERTICES` of ``chosen`` nearest their centroid (all when fewer), sorted."""
+    if chosen.numel() <= MAX_VERTICES:
+        return chosen
+    points = vertices[chosen]
+    distance = (points - points.mean(0)).norm(dim=-1)
+    return torch.sort(chosen[torch.argsort(distance)[:MAX_VERTICES]]).values
 
 
 def _band(values: torch.Tensor, indices: torch.Tensor, width: float, top: bool) -> torch.Tensor:
