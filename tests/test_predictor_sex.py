@@ -132,3 +132,8 @@ def test_part_uncertainty_names_every_part_and_a_hidden_limb_spreads(predictor: 
     assert set(parts) == set(predictor.body.part_names)
     assert all(value > 0 for value in parts.values())
     assert parts["left_wrist"] > parts["pelvis"]
+
+
+def test_meshes_have_a_short_repr(automatic) -> None:
+    text = repr(automatic.sample(3, seed=0))
+    assert len(text) <= 200 and "3 bodies" in text

@@ -98,6 +98,10 @@ class BodyMeshes:
     foot_keypoints2d: torch.Tensor
     extremity_keypoints2d: torch.Tensor
 
+    def __repr__(self) -> str:
+        count, vertices = self.vertices.shape[0], self.vertices.shape[1]
+        return f"BodyMeshes({count} bodies of {vertices} vertices, metres; keypoints2d in photo px)"
+
 
 @dataclass(frozen=True)
 class BodyPosterior:
