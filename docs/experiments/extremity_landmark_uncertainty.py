@@ -80,6 +80,25 @@ def shown(posterior: BodyPosterior, side: str) -> str:
     return " ".join(words)
 
 
+def covered_ratios(predictor: Predictor, photo: str, posterior: BodyPosterior) -> list[str]:
+    """Table rows: each hand's and foot's uncertainty ratio (covered / clear) under a box
+    (:func:`extremity_box` on ``posterior``'s detection), the landmarks off and on."""
+    ratios: dict[tuple[str, str], list[float]] = {}
+    for landmarks in (False, True):
+        predictor.landmark_evidence = landmarks
+        clear = predictor.predict(photo)
+        for side in ("left", "right"):
+            for kind, parts in COVERED_PARTS.items():
+                box = extremity_box(posterior, side, kind)
+                covered = part_means(predictor.predict(photo, occluders=[box]), side)
+                before = part_means(clear, side)
+                ratio = sum(covered[p] for p in parts) / sum(before[p] for p in parts)
+                ratios.setdefault((side, kind), []).append(ratio)
+    name = Path(photo).name
+    return [f"| {name} | {side} {kind} | {off:.2f} | {on:.2f} |"
+            for (side, kind), (off, on) in ratios.items()]  # fmt: skip
+
+
 def timed(predictor: Predictor, photo: str, repeats: int) -> float:
     """Median seconds of predict + 100-sample vertex uncertainty."""
     seconds = []
@@ -93,7 +112,7 @@ def timed(predictor: Predictor, photo: str, repeats: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("photos", nargs="+")
-    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--repeats", type=int, default=7, help="0: no timing")
     args = parser.parse_args()
     torch.set_grad_enabled(False)
     predictor = Predictor.from_pretrained()
@@ -110,19 +129,13 @@ def main() -> None:
                 values = " | ".join(f"{v:.1f}" for v in part_means(posterior, side).values())
                 print(f"| {name} | {side} | {'on' if landmarks else 'off'} | "
                       f"{shown(posterior, side)} | {values} |")  # fmt: skip
-        clear = {side: part_means(posterior, side) for side in ("left", "right")}
-        for side in ("left", "right"):
-            for kind, parts in COVERED_PARTS.items():
-                box = extremity_box(posterior, side, kind)
-                covered = part_means(predictor.predict(photo, occluders=[box]), side)
-                ratio = sum(covered[p] for p in parts) / sum(clear[side][p] for p in parts)
-                covered_rows.append(f"| {name} | {side} {kind} | {ratio:.2f} |")
-        for landmarks in (False, True):
+        covered_rows += covered_ratios(predictor, photo, posterior)
+        for landmarks in (False, True) if args.repeats else ():
             predictor.landmark_evidence = landmarks
             timing_rows.append(f"| {name} | {'on' if landmarks else 'off'} | "
                                f"{1000 * timed(predictor, photo, args.repeats):.0f} |")  # fmt: skip
-    print("\n| photo | box over | uncertainty ratio (covered / clear), landmarks on |")
-    print("|---|---|---|")
+    print("\n| photo | box over | ratio covered / clear, landmarks off | landmarks on |")
+    print("|---|---|---|---|")
     print("\n".join(covered_rows))
     print("\n| photo | landmarks | photo -> posterior + 100-sample uncertainty, median ms |")
     print("|---|---|---|")
