@@ -441,6 +441,9 @@ def _write_overview(
         person_mask=detection.person_mask,
         mode_vertices2d=torch.as_tensor(vertices2d)[0].detach().cpu().double().numpy(),
         faces=torch.as_tensor(posterior.body.faces).cpu().numpy(),
+        detected_extremities=detection.extremities,
+        extremity_shown=prepared.extremity_evidence,
+        mode_extremities2d=mode.extremity_keypoints2d[0].cpu().numpy(),
     )
     overview = make_overview(
         prepared.image,

@@ -186,6 +186,8 @@ def draw_skeletons(
     if outlines is not None:
         _draw_outlines(draw, outlines, view, line)
     _draw_bones(draw, view.image_to_crop(np.asarray(mode_keypoints2d)), MODE_COLOUR, 2 * line)
+    if outlines is not None:
+        _draw_extremities(draw, outlines, view, np.asarray(mode_keypoints2d), line)
     radius = 2.5 * line
     for (u, v), confidence in zip(
         view.image_to_crop(np.asarray(keypoints)), confidences, strict=True
@@ -207,11 +209,55 @@ class Outlines:
         mode_vertices2d: ``(V, 2)`` the mode's vertices projected into original-photo pixels
             (None: not drawn).
         faces: ``(F, 3)`` the mesh's triangles (needed with ``mode_vertices2d``).
+        detected_extremities: ``(10, 2)`` BlazePose's hand and foot landmarks, original
+            pixels, drawn as small squares (None: not drawn).
+        extremity_shown: ``(10,)`` bool, which of them were evidence (hollow otherwise).
+        mode_extremities2d: ``(10, 2)`` the mode's landmarks reprojected
+            (``BodyMeshes.extremity_keypoints2d``), drawn as bones from the wrists and ankles.
     """
 
     person_mask: PersonMask | None = None
     mode_vertices2d: np.ndarray | None = None
     faces: np.ndarray | None = None
+    detected_extremities: np.ndarray | None = None
+    extremity_shown: np.ndarray | None = None
+    mode_extremities2d: np.ndarray | None = None
+
+
+EXTREMITY_BONES = (
+    (9, 0), (9, 2), (9, 4), (10, 1), (10, 3), (10, 5),
+    (15, 6), (15, 8), (16, 7), (16, 9),
+)  # fmt: skip
+"""(COCO keypoint, extremity landmark) pairs drawn as the mode's hand and foot bones: each wrist
+to its pinky, index and thumb, each ankle to its heel and foot index."""
+
+
+def _draw_extremities(
+    draw: ImageDraw.ImageDraw,
+    outlines: Outlines,
+    view: CropTransform,
+    mode_keypoints2d: np.ndarray,
+    line: int,
+) -> None:
+    """The mode's hand and foot bones (to its reprojected landmarks) and the detected
+    landmarks as small squares, hollow where they were not evidence (none drawn when
+    ``outlines`` lacks them)."""
+    if outlines.mode_extremities2d is not None:
+        joints = view.image_to_crop(mode_keypoints2d)
+        ends = view.image_to_crop(np.asarray(outlines.mode_extremities2d))
+        for joint, end in EXTREMITY_BONES:
+            draw.line((*joints[joint], *ends[end]), fill=MODE_COLOUR, width=line)
+    if outlines.detected_extremities is None:
+        return
+    shown = outlines.extremity_shown
+    half = 1.6 * line
+    points = view.image_to_crop(np.asarray(outlines.detected_extremities))
+    for index, (u, v) in enumerate(points):
+        if not (np.isfinite(u) and np.isfinite(v)):
+            continue
+        fill = (255, 255, 255) if shown is None or shown[index] else None
+        draw.rectangle((u - half, v - half, u + half, v + half), fill=fill,
+                       outline=(20, 20, 20), width=max(1, line // 2))  # fmt: skip
 
 
 def _draw_outlines(
