@@ -25,7 +25,7 @@ import torch
 
 from hkpd.body.extremity_landmarks import BLAZEPOSE_EXTREMITY_NAMES, extremity_landmarks
 from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
-from hkpd.conditioning.landmark_term import LandmarkEvidence, LandmarkTerm
+from hkpd.conditioning.landmark_term import LandmarkConfig, LandmarkEvidence, LandmarkTerm
 from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network
 from hkpd.poses import pose_source
@@ -105,7 +105,13 @@ def main() -> None:
     parser.add_argument("--count", type=int, default=64)
     parser.add_argument("--samples", type=int, default=50)
     parser.add_argument("--poses", type=Path, default=None)
+    parser.add_argument(
+        "--seed", type=int, default=2021, help="2021: the test views; another to choose settings"
+    )
+    parser.add_argument("--hand-sigma-scale", type=float, default=LandmarkConfig.hand_sigma_scale)
+    parser.add_argument("--foot-sigma-scale", type=float, default=LandmarkConfig.foot_sigma_scale)
     args = parser.parse_args()
+    landmark_config = LandmarkConfig(args.hand_sigma_scale, args.foot_sigma_scale)
     torch.set_grad_enabled(False)
     network, _ = load_network(shipped_model_path(), "cpu")
     network.eval()
@@ -119,7 +125,7 @@ def main() -> None:
     regressor = extremity_landmarks(body).rows(BLAZEPOSE_EXTREMITY_NAMES)
     regressor64 = extremity_landmarks(body64).rows(BLAZEPOSE_EXTREMITY_NAMES)
     evidence_config = EvidenceConfig()
-    batch = synthetic.generate(args.count, seed=2021).batch
+    batch = synthetic.generate(args.count, seed=args.seed).batch
     size = batch.proxy.shape[-1]
     output = network(batch.proxy)
     noise = torch.Generator().manual_seed(0)
@@ -136,13 +142,15 @@ def main() -> None:
         term = LandmarkTerm(
             LandmarkEvidence(landmarks[item].double(), landmark_reported[item], size),
             regressor64, evidence_config.keypoint_sigma, evidence_config.robust_scale,
+            landmark_config,
         )  # fmt: skip
         for name, terms in (("keypoints", []), ("keypoints + landmarks", [term])):
             fit = condition_on_keypoints(body64, start, evidence, evidence_config, terms)
             fitted = start.rows(0) if fit.conditioned is None else fit.conditioned
             for column, values in part_metrics(body, fitted, batch, item, args.samples).items():
                 totals[name][column].append(values)
-    print(f"{args.count} synthetic examples ({size} px), {args.samples} samples each\n")
+    print(f"{args.count} synthetic examples ({size} px), {args.samples} samples each, "
+          f"{landmark_config}\n")  # fmt: skip
     print("| evidence | part | mode error cm | uncertainty cm | truth within 90 % radius |")
     print("|---|---|---|---|---|")
     for name, columns in totals.items():
