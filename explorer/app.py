@@ -21,7 +21,6 @@ from dataclasses import dataclass, replace
 from typing import cast
 
 import numpy as np
-import torch
 import viser
 
 from hkpd.distributions import MatrixFisher
@@ -51,6 +50,7 @@ from hkpd.explorer.provider import (
     PosteriorProvider,
     PredictionResult,
 )
+from hkpd.explorer.same_person_shapes import combined_photos
 from hkpd.explorer.scene import COMBINED_OFFSET, HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
 from hkpd.explorer.scene_file import PhotoRef
 from hkpd.explorer.scene_keeping import SceneKeeper
@@ -67,7 +67,7 @@ from hkpd.kinematic_tree import body_joint_index
 from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
 from hkpd.prediction.exports.fit_overlay import FitOverlay, render_fit_overlay
 from hkpd.prediction.posterior import BodyPosterior
-from hkpd.prediction.shape_combination import CombinedShape, combine_shape_tensors
+from hkpd.prediction.shape_combination import CombinedShape
 
 PREDICTION_DEBOUNCE_S = 0.12
 """Occluder edits closer together than this trigger one prediction."""
@@ -701,7 +701,9 @@ class ExplorerApp(KeepingActions, BodyAppActions):
             std = tuple(posterior.shape_std.detach().cpu().double().tolist())
             with self._lock:  # a new photo (a new person) replaces the token and the set
                 current = token == self._image_token
-                added = current and self.state.add_same_person_shape(name, mean, std)
+                added = current and self.state.add_same_person_shape(
+                    name, mean, std, posterior.sexes, posterior.stated
+                )
             if not current:
                 reason = f"{name}: a new photo was loaded meanwhile; add it for the new person."
                 self._notify(client, "Photo not added", reason, error=True)
@@ -728,9 +730,7 @@ class ExplorerApp(KeepingActions, BodyAppActions):
             posterior = result.posterior
             current = (posterior.shape_mean.detach().cpu().double(),
                        posterior.shape_std.detach().cpu().double())  # fmt: skip
-            means = torch.stack([current[0], *(torch.tensor(s.mean).double() for s in added)])
-            stds = torch.stack([current[1], *(torch.tensor(s.std).double() for s in added)])
-            combined = combine_shape_tensors(means, stds, posterior.body)
+            combined = combined_photos(posterior, added)
             with self._lock:
                 self._combined = combined
             uncertainty = combined.vertex_uncertainty.detach().cpu().numpy()

@@ -18,6 +18,9 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass, field, replace
+from typing import Any
+
+import torch
 
 from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
@@ -60,11 +63,27 @@ class SamePersonShape:
         name: the photo's file name (for the panel).
         mean: ``K`` mean shape coefficients.
         std: ``K`` their standard deviations (> 0).
+        sexes: the photo's shape per sex (:class:`hkpd.prediction.sex_latent.SexShapes`), or
+            None; with it the photos combine per sex (:mod:`hkpd.prediction.sex_combination`).
+        stated: what the photo was predicted with (:class:`hkpd.stated_body.StatedBody`), or
+            None.
     """
 
     name: str
     mean: tuple[float, ...]
     std: tuple[float, ...]
+    sexes: Any = field(default=None, compare=False, hash=False, repr=False)
+    stated: Any = field(default=None, compare=False, hash=False, repr=False)
+
+    @property
+    def shape_mean(self) -> torch.Tensor:
+        """``(K,)`` float64, as a posterior holds it (for the shape combination)."""
+        return torch.tensor(self.mean, dtype=torch.float64)
+
+    @property
+    def shape_std(self) -> torch.Tensor:
+        """``(K,)`` float64."""
+        return torch.tensor(self.std, dtype=torch.float64)
 
 
 @dataclass(frozen=True)
@@ -272,7 +291,12 @@ class ExplorerState:
 
     # ------------------------------------------------------------------ same person
     def add_same_person_shape(
-        self, name: str, mean: tuple[float, ...], std: tuple[float, ...]
+        self,
+        name: str,
+        mean: tuple[float, ...],
+        std: tuple[float, ...],
+        sexes: Any = None,
+        stated: Any = None,
     ) -> bool:
         """Keep one more photo's shape Gaussian for the current person; False when
         :data:`MAX_SAME_PERSON_PHOTOS` are kept already.
@@ -295,7 +319,7 @@ class ExplorerState:
                     f"this photo has {len(mean)} shape coefficients, the kept ones have "
                     f"{len(self._same_person[0].mean)}"
                 )
-            self._same_person.append(SamePersonShape(str(name), mean, std))
+            self._same_person.append(SamePersonShape(str(name), mean, std, sexes, stated))
             return True
 
     def clear_same_person(self) -> bool:

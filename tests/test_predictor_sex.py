@@ -137,3 +137,18 @@ def test_part_uncertainty_names_every_part_and_a_hidden_limb_spreads(predictor: 
 def test_meshes_have_a_short_repr(automatic) -> None:
     text = repr(automatic.sample(3, seed=0))
     assert len(text) <= 200 and "3 bodies" in text
+
+
+def test_the_explorers_added_photos_combine_per_sex(automatic) -> None:
+    from hkpd.explorer.same_person_shapes import combined_photos
+    from hkpd.explorer.state import SamePersonShape
+
+    mean = tuple(automatic.shape_mean.double().tolist())
+    std = tuple(automatic.shape_std.double().tolist())
+    added = SamePersonShape("again.jpg", mean, std, automatic.sexes, automatic.stated)
+    combined = combined_photos(automatic, [added])
+    assert combined.count == 2 and combined.sexes is not None
+    p = automatic.sex_probabilities["female"]
+    assert combined.sexes.probabilities["female"] == pytest.approx(p * p / (p * p + (1 - p) ** 2))
+    plain = combined_photos(automatic, [SamePersonShape("old.jpg", mean, std)])
+    assert plain.count == 2 and plain.sexes is None  # a photo without sexes: the product

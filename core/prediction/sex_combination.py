@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Protocol
 
 import torch
 
@@ -26,11 +27,18 @@ from hkpd.body.asset import SEX_NAMES
 from hkpd.body.measurements import MEASUREMENT_NAMES, body_measurer
 from hkpd.conditioning import StatedBody, conditioned_on_measurements
 from hkpd.conditioning.shape_prior import RELINEARISATIONS, ShapeGaussian
-from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.sex_latent import SexShapes, sex_probabilities
 
 
-def combine_sexes(posteriors: Sequence[BodyPosterior], body: BodyModel) -> SexShapes | None:
+class SexedShape(Protocol):
+    """What :func:`combine_sexes` reads of a photo: a :class:`BodyPosterior`, or any record
+    with the posterior's ``sexes`` and ``stated``."""
+
+    sexes: SexShapes | None
+    stated: StatedBody | None
+
+
+def combine_sexes(posteriors: Sequence[SexedShape], body: BodyModel) -> SexShapes | None:
     """The combined :class:`SexShapes` of ``N >= 1`` photos of one person (module docstring),
     or None when a photo has no sexes.
 
@@ -66,7 +74,7 @@ def combine_sexes(posteriors: Sequence[BodyPosterior], body: BodyModel) -> SexSh
     return SexShapes(probabilities, means, covariances, stated.sex is not None)
 
 
-def _common_stated(posteriors: Sequence[BodyPosterior]) -> StatedBody:
+def _common_stated(posteriors: Sequence[SexedShape]) -> StatedBody:
     """What every photo was given (the same for all), or a ValueError."""
     stated = [posterior.stated or StatedBody() for posterior in posteriors]
     first = stated[0]

@@ -29,7 +29,6 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT
-from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.sex_combination import combine_sexes
 from hkpd.prediction.sex_latent import SexShapes
 from hkpd.uncertainty import vertex_uncertainty
@@ -264,7 +263,9 @@ def combine_shapes(
     """
     means, stds = stack_shape_distributions(distributions)
     sexes = None
-    if method == "product" and all(isinstance(item, BodyPosterior) for item in distributions):
+    if method == "product" and all(
+        getattr(item, "sexes", None) is not None for item in distributions
+    ):
         sexes = combine_sexes(list(distributions), body)  # type: ignore[arg-type]
     if sexes is None:
         return combine_shape_tensors(means, stds, body, method, uncertainty_samples, seed)
