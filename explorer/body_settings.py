@@ -15,8 +15,7 @@ import math
 import re
 from dataclasses import dataclass
 
-from hkpd.body.measurements import MEASUREMENT_NAMES
-from hkpd.stated_body import DEFAULT_STATED_STD, StatedBody, StatedValue
+from hkpd.stated_body import DEFAULT_STATED_STD, MEASUREMENT_NAMES, StatedBody, StatedValue
 
 FIELD_UNITS: dict[str, tuple[str, float]] = {
     "height_m": ("cm", 0.01),

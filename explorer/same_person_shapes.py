@@ -10,6 +10,7 @@ changed after a photo was added) by the product of their diagonal shape Gaussian
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import torch
 
@@ -18,21 +19,37 @@ from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.shape_combination import CombinedShape, combine_shape_tensors, combine_shapes
 
 
+@dataclass(frozen=True)
+class _AddedPhoto:
+    """An added photo's shape as :func:`combine_shapes` reads a posterior's."""
+
+    shape_mean: torch.Tensor
+    shape_std: torch.Tensor
+    sexes: object
+    stated: object
+
+    @classmethod
+    def of(cls, shape: SamePersonShape) -> _AddedPhoto:
+        mean = torch.tensor(shape.mean, dtype=torch.float64)
+        return cls(mean, torch.tensor(shape.std, dtype=torch.float64), shape.sexes, shape.stated)
+
+
 def combined_photos(posterior: BodyPosterior, added: Sequence[SamePersonShape]) -> CombinedShape:
     """The current photo's ``posterior`` combined with the ``added`` photos' shapes.
 
     Raises:
         ValueError: the photos' shape coefficients do not fit together.
     """
-    stated = [posterior.stated, *(shape.stated for shape in added)]
+    photos = [_AddedPhoto.of(shape) for shape in added]
+    stated = [posterior.stated, *(photo.stated for photo in photos)]
     if (
         posterior.sexes is not None
-        and all(shape.sexes is not None for shape in added)
+        and all(photo.sexes is not None for photo in photos)
         and all(item == stated[0] for item in stated)
     ):
-        return combine_shapes([posterior, *added], posterior.body)  # type: ignore[list-item]
+        return combine_shapes([posterior, *photos], posterior.body)  # type: ignore[list-item]
     means = torch.stack([posterior.shape_mean.detach().cpu().double()]
-                        + [shape.shape_mean for shape in added])  # fmt: skip
+                        + [photo.shape_mean for photo in photos])  # fmt: skip
     stds = torch.stack([posterior.shape_std.detach().cpu().double()]
-                       + [shape.shape_std for shape in added])  # fmt: skip
+                       + [photo.shape_std for photo in photos])  # fmt: skip
     return combine_shape_tensors(means, stds, posterior.body)

@@ -20,8 +20,6 @@ import threading
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-import torch
-
 from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
 
@@ -74,16 +72,6 @@ class SamePersonShape:
     std: tuple[float, ...]
     sexes: Any = field(default=None, compare=False, hash=False, repr=False)
     stated: Any = field(default=None, compare=False, hash=False, repr=False)
-
-    @property
-    def shape_mean(self) -> torch.Tensor:
-        """``(K,)`` float64, as a posterior holds it (for the shape combination)."""
-        return torch.tensor(self.mean, dtype=torch.float64)
-
-    @property
-    def shape_std(self) -> torch.Tensor:
-        """``(K,)`` float64."""
-        return torch.tensor(self.std, dtype=torch.float64)
 
 
 @dataclass(frozen=True)
