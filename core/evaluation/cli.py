@@ -379,9 +379,11 @@ def _shape_evaluation(arguments: argparse.Namespace, device: torch.device) -> tu
             scores, f"Shape read on the synthetic test set: {checkpoint}, {arguments.count} "
             f"examples, {source}, detector-like keypoints and masks{read}",
         ))  # fmt: skip
-        if arguments.evidence:
-            sexed = _sex_shape_record(arguments, device, mirror)
-            record |= sexed
+        # The product's posterior (both sexes fitted to detector-like keypoints), whether or
+        # not --evidence also asks for the single-prior evidence rows above.
+        sexed = _sex_shape_record(arguments, device, mirror)
+        record |= sexed
+        if sexed:
             parts.append(shape_report.sex_markdown(
                 sexed, f"Sex, measurements and stated values: {checkpoint}, {arguments.count} "
                 f"bodies drawn half from each sex's prior, {source}, detector-like keypoints",
