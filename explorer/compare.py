@@ -13,14 +13,16 @@ second set of columns (:mod:`hkpd.explorer.compare_scene`):
 B is sampled with A's seed and count and A's concentration factors (except for
 ``default-concentrations``), and its per-vertex uncertainty divided by A's is the change
 colouring between the two (B ÷ A). B is predicted once per prediction of A (an occluder
-edit costs two predictions) and sampled once per slider move (a slider move costs two draws).
+edit costs two predictions) and sampled once per slider move (a slider move costs two draws;
+B's most likely body is computed once per prediction, and its columns' titles, colour bar and
+heatmap positions are sent again only when they change).
 """
 
 from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +36,7 @@ from hkpd.explorer.provider import (
     body_arguments,
 )
 from hkpd.explorer.state import StateSnapshot
-from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
 
 NAMED_SETTINGS: dict[str, str] = {
     "network": "network only",
@@ -105,10 +107,13 @@ def _load_model(path: str) -> PosteriorProvider:
 
 @dataclass(frozen=True)
 class ComparePrediction:
-    """B's posterior for one prediction of A."""
+    """B's posterior for one prediction of A, and its most likely body (the same for every
+    slider setting: :func:`~hkpd.explorer.posterior_view.compute_view`'s ``mode``), computed
+    with B's first view and kept for the others."""
 
     setting: CompareSetting
     posterior: BodyPosterior
+    mode: list[BodyMeshes] = field(default_factory=list, compare=False)
 
 
 class Comparison:
@@ -236,7 +241,10 @@ class Comparison:
             same = of is not None and of[0] is prediction and of[1] == key
             cached = self._view if same else None
         if cached is None:  # B's draw changed (a slider B follows, the seed, a new prediction)
-            view = compute_view(prediction.posterior, snapshot, view_a.uncertainty)
+            if not prediction.mode:  # once per prediction: sliders never move the mode
+                prediction.mode.append(prediction.posterior.mode())
+            mode = prediction.mode[0]
+            view = compute_view(prediction.posterior, snapshot, view_a.uncertainty, mode)
         else:  # only A moved (default-concentrations): the same B, a new ratio
             ratio = cached.uncertainty / np.maximum(view_a.uncertainty, MIN_BASELINE_M)
             view = replace(cached, change_ratio=ratio)

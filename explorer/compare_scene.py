@@ -53,6 +53,10 @@ class CompareColumns:
         self._nodes: dict[str, viser.SceneNodeHandle] = {}
         self._samples: list[viser.MeshHandle] = []
         self._samples_shown = True
+        self._titled: tuple[str, HeatmapScale, float] | None = None
+        """The label, scale and height the titles and colour bar were last drawn for."""
+        self._heat_vertices: np.ndarray | None = None
+        """The mode vertices B's heatmap points were last placed at."""
         self.shown = False
 
     def show(
@@ -78,12 +82,28 @@ class CompareColumns:
             if not (same_bodies and self.shown and self._samples_shown == show_samples):
                 self._draw_bodies(view, faces, show_samples)
             values = view.change_ratio if scale.kind == "change" else view.uncertainty
-            self._nodes["points"] = scene.add_point_cloud(
-                "/compare_heat/points", view.mode_vertices, scale.colours(values),
-                point_size=0.03, point_shape="circle", point_shading="flat",
-            )  # fmt: skip
-            self._titles(label, scale, titles_top)
+            self._show_heat_points(view.mode_vertices, scale.colours(values))
+            if self._titled != (label, scale, titles_top):  # unchanged: not sent again
+                self._titles(label, scale, titles_top)
+                self._titled = (label, scale, titles_top)
             self.shown = True
+
+    def _show_heat_points(self, vertices: np.ndarray, colours: np.ndarray) -> None:
+        """B's heatmap points at ``vertices (V, 3)`` in ``colours (V, 3)`` uint8; the positions
+        are sent only when they moved (a slider move recolours B's most likely body)."""
+        handle = self._nodes.get("points")
+        if not isinstance(handle, viser.PointCloudHandle):
+            self._nodes["points"] = self.server.scene.add_point_cloud(
+                "/compare_heat/points", vertices, colours, point_size=0.03,
+                point_shape="circle", point_shading="flat",
+            )  # fmt: skip
+        else:
+            if self._heat_vertices is not vertices and not np.array_equal(
+                self._heat_vertices, vertices
+            ):
+                handle.points = vertices
+            handle.colors = colours
+        self._heat_vertices = vertices
 
     def _draw_bodies(self, view: PosteriorView, faces: np.ndarray, show_samples: bool) -> None:
         """B's most likely body (beside its samples, and under its colours) and samples."""
@@ -153,4 +173,5 @@ class CompareColumns:
                 if handle is not None:
                     handle.remove()
             self._samples, self._nodes = [], {}
+            self._titled, self._heat_vertices = None, None
             self.shown = False

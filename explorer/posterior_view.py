@@ -17,7 +17,7 @@ import torch
 
 from hkpd.explorer.state import StateSnapshot
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, BODY_PARENTS, compose_global_rotations
-from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
 from hkpd.uncertainty import vertex_uncertainty
 
 
@@ -123,7 +123,10 @@ def baseline_uncertainty(baseline: BodyPosterior, num_samples: int, seed: int) -
 
 
 def compute_view(
-    base: BodyPosterior, snapshot: StateSnapshot, baseline_m: np.ndarray | None = None
+    base: BodyPosterior,
+    snapshot: StateSnapshot,
+    baseline_m: np.ndarray | None = None,
+    mode: BodyMeshes | None = None,
 ) -> PosteriorView:
     """Adjust, sample and summarise (see the module docstring). Seeded by ``snapshot.seed``.
 
@@ -132,9 +135,12 @@ def compute_view(
         snapshot: the sliders.
         baseline_m: ``(V,)`` the baseline's uncertainty (:func:`baseline_uncertainty`), metres,
             or None (then ``change_ratio`` is None).
+        mode: ``base.mode()`` when the caller keeps it (the sliders scale concentrations and
+            the shape spread, never the modal rotations or the mean shape, so every view of
+            ``base`` has the same most likely body); None: computed here.
     """
     posterior = adjust_posterior(base, snapshot)
-    mode = posterior.mode()
+    mode = posterior.mode() if mode is None else mode
     samples = posterior.sample(snapshot.num_samples, seed=snapshot.seed)
     shown = min(snapshot.num_displayed, snapshot.num_samples)
     uncertainty = vertex_uncertainty(samples.vertices).float().cpu().numpy()

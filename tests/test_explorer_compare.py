@@ -77,16 +77,16 @@ def test_no_occluders_b_is_surer_where_the_box_hides_evidence(app) -> None:
 
 
 def test_default_concentrations_and_another_model(app) -> None:
-    app.panels.concentration.joint_sliders["left_elbow"].value = -1.0
+    app.panels.concentration.joints["left_elbow"].track.value = (-1.0,)
     app.panels.compare.menu.value = "B: concentrations at 1×"
     assert app.wait_idle(60)
     assert forearm(app.compare.view, app.double) < forearm(app.view, app.double)
     drawn = app.compare.view
-    app.panels.concentration.joint_sliders["left_elbow"].value = -0.5  # A moves, B does not
+    app.panels.concentration.joints["left_elbow"].track.value = (-0.5,)  # A moves, B does not
     assert app.wait_idle(60) and app.compare.reused
     assert app.compare.view.sample_vertices is drawn.sample_vertices
     assert not np.array_equal(app.compare.view.change_ratio, drawn.change_ratio)
-    app.panels.concentration.joint_sliders["left_elbow"].value = 0.0
+    app.panels.concentration.joints["left_elbow"].track.value = (0.0,)
     app.panels.compare.menu.value = MODEL
     app.panels.compare.checkpoint.value = __file__  # any existing file: the loader is stubbed
     assert app.wait_idle(60)
@@ -119,3 +119,33 @@ def test_change_colouring_titles_follow_it(app) -> None:
     assert app.wait_idle(60)
     titles = app.server.scene._handle_from_node_name
     assert titles["/titles/uncertainty"].text == "Uncertainty over samples"
+
+
+def test_a_slider_move_redraws_only_what_b_changed(app) -> None:
+    """A slider B follows re-samples B, but B's most likely body is computed once per
+    prediction (sliders never move a mode) and its titles and colour bar are not sent again;
+    what B shows is what a fresh view of B shows."""
+    from hkpd.explorer.posterior_view import compute_view
+
+    app.set_compare(CompareSetting("network"))
+    assert app.wait_idle(60)
+    prediction = app.compare._prediction
+    titles = app.compare_columns._nodes["title_heat"]
+    points = app.compare_columns._nodes["points"]
+    app.sampling_changed(app.state.set_joint_exponent("left_elbow", -0.7))
+    assert app.wait_idle(60)
+    view_b, snapshot = app.compare.view, app.state.snapshot()
+    assert app.compare._prediction is prediction and len(prediction.mode) == 1
+    fresh = compute_view(prediction.posterior, snapshot, app.view.uncertainty)
+    np.testing.assert_allclose(view_b.mode_vertices, fresh.mode_vertices, atol=1e-6)
+    np.testing.assert_array_equal(view_b.uncertainty, fresh.uncertainty)
+    np.testing.assert_array_equal(view_b.sample_vertices, fresh.sample_vertices)
+    nodes = app.compare_columns._nodes
+    assert nodes["title_heat"] is titles and nodes["points"] is points  # kept, not re-added
+    app.panels.samples.colouring.value = "Change vs. no occluders, default concentrations (×)"
+    assert app.wait_idle(60)
+    assert app.compare_columns._nodes["title_heat"].text == "B (network only): uncertainty ÷ A's"
+    app.panels.samples.colouring.value = "Uncertainty, log scale (cm)"
+    app.sampling_changed(app.state.set_joint_exponent("left_elbow", 0.0))
+    app.set_compare(None)
+    assert app.wait_idle(60) and not app.compare_columns.shown
