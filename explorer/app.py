@@ -44,6 +44,7 @@ from hkpd.explorer.photo_geometry import (
     screen_rect_to_box,
 )
 from hkpd.explorer.posterior_view import PosteriorView, compute_view
+from hkpd.explorer.progress import PREDICT, SAMPLE, SEND, Progress
 from hkpd.explorer.provider import (
     Box,
     MaskFittingProvider,
@@ -185,6 +186,8 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         self.keeper = SceneKeeper(self)
         self.panels = build_panels(self.server, self)
         self.panels.photo.silhouette.visible = self.fits_person_mask
+        self.progress = Progress(self.server, self.panels.status)
+        self.worker.on_job_end = lambda _lane: self.progress.done()
         self.server.scene.on_rect_select(modifier="shift")(self._on_rect_select)
         self.server.on_client_connect(lambda client: self._frame_client(client, wait_s=5.0))
         self._plain_drag = False
@@ -524,7 +527,7 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         with self._lock:
             image, token = self._image, self._image_token
         started = time.perf_counter()
-        self.panels.status.show_busy()
+        self.progress.step(PREDICT)
         try:
             result = self._provider_predict(
                 image, snapshot.active_boxes, snapshot.evidence, snapshot.silhouette,
@@ -603,6 +606,7 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         photo: PhotoRef | None = None,
     ) -> None:
         started = time.perf_counter()
+        self.progress.step(PREDICT)
         snapshot = self.state.snapshot()
         result: PredictionResult | None = None
         try:
@@ -757,8 +761,10 @@ class ExplorerApp(KeepingActions, BodyAppActions):
             return
         snapshot = self.state.snapshot()
         started = time.perf_counter()
+        self.progress.step(SAMPLE)
         view = compute_view(result.posterior, snapshot, self._baseline_uncertainty(snapshot))
         drawn = time.perf_counter()
+        self.progress.step(SEND)
         self.scene.show_view(view, faces=result.posterior.body.faces.cpu().numpy())
         done = time.perf_counter()
         self.timings.sample, self.timings.draw = drawn - started, done - drawn

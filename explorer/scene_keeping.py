@@ -215,9 +215,9 @@ def _apply_concentrations(app: ExplorerApp, scene: SceneFile) -> None:
     section = app.panels.concentration
     exponents = scene.joint_exponents()
     for name, exponent in zip(BODY_JOINT_NAMES, exponents, strict=True):
-        section.joint_sliders[name].value = exponent
-    section.global_slider.value = round(math.log10(scene.all_joints_factor), 6)
-    section.shape_slider.value = round(math.log10(scene.shape_spread_factor), 6)
+        section.joints[name].set_exponent(exponent)
+    section.global_factor.set_factor(scene.all_joints_factor)
+    section.shape_factor.set_factor(scene.shape_spread_factor)
 
 
 DISPLAY_WORDS = {

@@ -44,10 +44,13 @@ class CoalescingWorker:
         lanes: lane names, highest priority first.
         on_error: called (in the worker thread) with the lane and exception when a job raises;
             the worker keeps running. Defaults to printing the traceback.
+        on_job_end: called (in the worker thread) with the lane after each job, however it
+            ended (the app removes its progress sign there).
     """
 
     lanes: Sequence[str]
     on_error: Callable[[str, BaseException], None] | None = None
+    on_job_end: Callable[[str], None] | None = None
     stats: dict[str, LaneStats] = field(init=False)
     _pending: dict[str, _Pending] = field(init=False, default_factory=dict)
     _running: str | None = field(init=False, default=None)
@@ -150,6 +153,8 @@ class CoalescingWorker:
                     self.on_error(lane, error)
                 else:
                     traceback.print_exc()
+            if self.on_job_end is not None:
+                self.on_job_end(lane)
             with self._condition:
                 stats = self.stats[lane]
                 stats.run += 1

@@ -224,18 +224,15 @@ def test_drag_occluder_move_slider_and_screenshot(app, tmp_path):
         # only has to become less sure.
         assert occluded > (1.0 if app.real_model else 1.5) * before, (before, occluded)
 
-        # 2. Drag the left elbow's concentration slider towards 0.1x (log10 -0.6), in the
-        # "Distribution" tab.
+        # 2. Type 0.25 (0.25x) in the left elbow's factor box, in the "Distribution" tab (its
+        # log track moves with it).
         page.get_by_role("tab", name="Distribution").click()
         page.get_by_text("Left arm", exact=True).click()
-        label = page.locator("label", has_text="left elbow").first
-        slider_id = label.get_attribute("for")
-        thumb = page.locator(f"[id='{slider_id}'] [role=slider]")
-        thumb.wait_for(state="visible", timeout=20_000)
-        thumb.scroll_into_view_if_needed()
-        thumb.focus()
-        for _ in range(12):  # twelve 0.05 steps while the meshes update live
-            thumb.press("ArrowLeft")
+        box_id = page.locator("label", has_text="left elbow ×").first.get_attribute("for")
+        box = page.locator(f"[id='{box_id}']")
+        box.wait_for(state="visible", timeout=20_000)
+        box.scroll_into_view_if_needed()
+        box.fill("0.25")
         wait_for(
             lambda: app.state.snapshot().joint_exponents[17] < -0.5, what="slider in server state"
         )  # index 17 = left_elbow among the 23 body joints

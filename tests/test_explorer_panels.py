@@ -4,6 +4,7 @@ its value, as when a browser does)."""
 
 from __future__ import annotations
 
+import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
@@ -137,33 +138,49 @@ def test_the_defaults_come_from_the_state(built) -> None:
     assert panels.samples.num_samples.value == actions.state.num_samples == 100
     assert panels.samples.num_displayed.value == 10 and panels.samples.seed.value == 0
     assert panels.teaching.joint.value == "left elbow"  # the menu shows names, not identifiers
-    assert len(panels.concentration.joint_sliders) == 23
+    assert len(panels.concentration.joints) == 23
     assert panels.status.line.content == "Starting…"
     assert sorted(panels.export.meshes) == ["glb", "ply"]
 
 
-def test_concentration_sliders_change_the_state_and_reset_puts_them_back(built) -> None:
+def test_concentration_controls_change_the_state_and_reset_puts_them_back(built) -> None:
     panels, actions = built
     concentration = panels.concentration
-    concentration.joint_sliders["left_elbow"].value = -0.5
-    concentration.global_slider.value = 0.25
-    concentration.shape_slider.value = 0.5
+    elbow = concentration.joints["left_elbow"]
+    elbow.track.value = (-0.5,)  # a drag on the log track
+    concentration.global_factor.box.value = 2.0  # typing 2 in the box means 2x
+    concentration.shape_factor.track.value = (0.5,)
     snapshot = actions.state.snapshot()
     assert snapshot.joint_exponents[body_joint_index("left_elbow")] == -0.5
-    # The labels show the factor (a slider at 0 is 1×, not "0").
-    assert concentration.joint_sliders["left_elbow"].label == "left elbow · 0.32×"
-    assert concentration.joint_sliders["right_knee"].label == "right knee · 1×"
-    assert concentration.shape_slider.label == "Shape spread · 3.2×"
-    assert snapshot.global_exponent == 0.25 and snapshot.shape_std_exponent == 0.5
+    assert snapshot.global_exponent == pytest.approx(math.log10(2.0), abs=1e-6)
+    assert snapshot.shape_std_exponent == 0.5
+    # The boxes hold the factor, in the unit their label states.
+    assert elbow.box.label == "left elbow ×" and elbow.box.value == pytest.approx(10**-0.5)
+    assert concentration.joints["right_knee"].box.value == 1.0
+    assert concentration.shape_factor.box.value == pytest.approx(10**0.5)
+    assert concentration.global_factor.track.value[0] == pytest.approx(math.log10(2.0))
+    assert concentration.global_factor.box.value == 2.0  # the typed number stays as typed
     assert actions.named("sampling_changed") == [(True,)] * 3
     actions.calls.clear()
     click(concentration.reset_button)
     snapshot = actions.state.snapshot()
     assert not any(snapshot.joint_exponents) and snapshot.global_exponent == 0.0
-    assert concentration.joint_sliders["left_elbow"].value == 0.0
-    assert concentration.shape_slider.value == 0.0
-    assert concentration.joint_sliders["left_elbow"].label == "left elbow · 1×"
+    assert elbow.track.value == (0.0,) and elbow.box.value == 1.0
+    assert concentration.shape_factor.box.value == 1.0
     assert actions.named("sampling_changed")[-1] == (True,)
+
+
+def test_a_factor_box_typed_out_of_range_clips_the_state_not_the_box(built) -> None:
+    panels, actions = built
+    knee = panels.concentration.joints["left_knee"]
+    knee.box.value = 0.0  # "0" typed on the way to "0.5": the box is left alone
+    assert knee.box.value == 0.0 and knee.track.value == (-1.0,)
+    assert actions.state.snapshot().joint_exponents[body_joint_index("left_knee")] == -1.0
+    knee.box.value = 0.5
+    assert knee.track.value[0] == pytest.approx(math.log10(0.5), abs=1e-6)
+    knee.box.value = 25.0  # beyond 10x: the state stops at 10x
+    assert actions.state.snapshot().joint_exponents[body_joint_index("left_knee")] == 1.0
+    assert knee.box.value == 25.0  # the browser clamps the box when the user leaves it
 
 
 def test_sample_controls_and_display_switches_reach_the_app(built) -> None:

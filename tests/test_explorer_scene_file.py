@@ -125,7 +125,7 @@ def test_a_reopened_scene_gives_bit_identical_posteriors(double, tmp_path) -> No
         Image.fromarray(double.scene.image).save(photo)
         first.keeper.photo = PhotoRef.of_file(photo)
         first.add_occluder((250, 210, 300, 260))
-        first.panels.concentration.joint_sliders["left_elbow"].value = -0.5
+        first.panels.concentration.joints["left_elbow"].track.value = (-0.5,)
         first.panels.samples.seed.value = 5
         assert first.wait_idle(60)
         assert "left elbow 0.32×" in first.panels.keep.changes.content
@@ -142,7 +142,8 @@ def test_a_reopened_scene_gives_bit_identical_posteriors(double, tmp_path) -> No
         assert torch.equal(second.result.posterior.F, posterior_a.F)
         assert np.array_equal(second.view.uncertainty, view_a.uncertainty)
         assert np.array_equal(second.view.sample_vertices, view_a.sample_vertices)
-        assert second.panels.concentration.joint_sliders["left_elbow"].label.endswith("0.32×")
+        elbow = second.panels.concentration.joints["left_elbow"]
+        assert elbow.box.value == pytest.approx(0.316, abs=1e-3)
         assert second.keeper.source == "scene.json"
     finally:
         second.stop()
@@ -155,7 +156,7 @@ def test_undo_redo_and_reset_everything(double, monkeypatch) -> None:
         assert app.wait_idle(60)
         app.add_occluder((250, 210, 300, 260))
         assert app.wait_idle(60)
-        app.panels.concentration.joint_sliders["left_knee"].value = 1.0
+        app.panels.concentration.joints["left_knee"].box.value = 10.0
         assert app.wait_idle(60)
         assert app.undo() and app.wait_idle(60)
         assert app.state.snapshot().joint_exponents == (0.0,) * 23
@@ -176,7 +177,7 @@ def test_undo_redo_and_reset_everything(double, monkeypatch) -> None:
         # A slider dragged through many values without a pause is one edit.
         monkeypatch.setattr(scene_keeping, "EDIT_PAUSE_S", 60.0)
         for exponent in (-0.2, -0.4, -0.6, -0.8):
-            app.panels.concentration.joint_sliders["left_knee"].value = exponent
+            app.panels.concentration.joints["left_knee"].track.value = (exponent,)
             assert app.wait_idle(60)
         assert app.undo() and app.wait_idle(60)
         assert app.state.snapshot().joint_exponents == (0.0,) * 23

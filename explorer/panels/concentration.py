@@ -1,5 +1,8 @@
-"""The distribution tab's "Concentration" folder: log-scale factors on every joint's
-concentration (one slider per joint, grouped by limb), on all joints, and on the shape spread."""
+"""The distribution tab's "Concentration" folder: factors on every joint's concentration (one
+control per joint, grouped by limb), on all joints, and on the shape spread.
+
+Each control is a :class:`~hkpd.explorer.panels.factor_control.FactorControl`: a number box
+holding the factor (typing 2 means 2×) over a log10 track (0.1× .. 10×)."""
 
 from __future__ import annotations
 
@@ -8,103 +11,68 @@ from dataclasses import dataclass
 import viser
 
 from hkpd.explorer.panels.actions import StateActions
+from hkpd.explorer.panels.factor_control import FactorControl
 from hkpd.explorer.state import CONCENTRATION_EXPONENT_RANGE, LIMB_GROUPS
 
-EXPONENT_MARKS = ((-1.0, "0.1×"), (0.0, "1×"), (1.0, "10×"))
-EXPONENT_STEP = 0.05
-"""Slider step on log10 of a factor."""
-EXPONENT_HINT = (
-    "The slider moves log10 of the factor (-1 = 0.1×, 0 = 1×, 1 = 10×); the label shows the "
-    "factor. Each joint's factor multiplies the All-joints one."
+FACTOR_HINT = (
+    "The box is the factor (2 = 2×, 0.5 = 0.5×, from 0.1 to 10); the track under it moves the "
+    "same factor on a log scale. Each joint's factor multiplies the All-joints one."
 )
+GLOBAL_NAME, SHAPE_NAME = "All joints", "Shape spread"
 
 
 @dataclass(frozen=True)
 class ConcentrationSection:
-    """Handles of the concentration sliders (values: log10 of the factor, 0 = 1x; labels: the
-    name and the factor, "left elbow · 0.5×").
+    """Handles of the concentration controls (each a factor box over a log10 track).
 
     Attributes:
-        global_slider: "All joints · 1×".
-        shape_slider: "Shape spread · 1×".
-        joint_sliders: one slider per body joint, by joint name.
+        global_factor: "All joints ×".
+        shape_factor: "Shape spread ×".
+        joints: one control per body joint, by joint name.
         reset_button: "Reset concentrations".
     """
 
-    global_slider: viser.GuiSliderHandle
-    shape_slider: viser.GuiSliderHandle
-    joint_sliders: dict[str, viser.GuiSliderHandle]
+    global_factor: FactorControl
+    shape_factor: FactorControl
+    joints: dict[str, FactorControl]
     reset_button: viser.GuiButtonHandle
 
     def reset(self) -> None:
-        """Every slider back to 1x (their callbacks find the state already reset)."""
-        named = {GLOBAL_NAME: self.global_slider, SHAPE_NAME: self.shape_slider}
-        named |= {joint.replace("_", " "): s for joint, s in self.joint_sliders.items()}
-        for name, slider in named.items():
-            slider.value = 0.0
-            _show_factor(slider, name)
+        """Every control back to 1× (their callbacks find the state already reset)."""
+        for control in (self.global_factor, self.shape_factor, *self.joints.values()):
+            control.set_exponent(0.0)
 
 
 def build_concentration_section(gui: viser.GuiApi, actions: StateActions) -> ConcentrationSection:
     """The "Concentration" folder, wired to ``actions``."""
     state = actions.state
     with gui.add_folder("Concentration"):
-        global_slider = _exponent_slider(gui, GLOBAL_NAME)
-        shape_slider = _exponent_slider(gui, SHAPE_NAME)
-        joint_sliders: dict[str, viser.GuiSliderHandle] = {}
-        for group, joints in LIMB_GROUPS.items():
+        global_factor = _control(gui, GLOBAL_NAME)
+        shape_factor = _control(gui, SHAPE_NAME)
+        joints: dict[str, FactorControl] = {}
+        for group, names in LIMB_GROUPS.items():
             with gui.add_folder(group, expand_by_default=False):
-                for joint in joints:
-                    joint_sliders[joint] = _exponent_slider(gui, joint.replace("_", " "))
+                for joint in names:
+                    joints[joint] = _control(gui, joint.replace("_", " "))
         reset = gui.add_button("Reset concentrations", icon=viser.Icon.REFRESH)
-    section = ConcentrationSection(global_slider, shape_slider, joint_sliders, reset)
-    global_slider.on_update(
-        lambda _: actions.sampling_changed(
-            state.set_global_exponent(_show_factor(global_slider, GLOBAL_NAME).value)
-        )
-    )
-    shape_slider.on_update(
-        lambda _: actions.sampling_changed(
-            state.set_shape_std_exponent(_show_factor(shape_slider, SHAPE_NAME).value)
-        )
-    )
-    for joint, slider in joint_sliders.items():
-        slider.on_update(_joint_callback(actions, joint, slider))
+    section = ConcentrationSection(global_factor, shape_factor, joints, reset)
+    global_factor.on_change(lambda e: actions.sampling_changed(state.set_global_exponent(e)))
+    shape_factor.on_change(lambda e: actions.sampling_changed(state.set_shape_std_exponent(e)))
+    for joint, control in joints.items():
+        control.on_change(_joint_listener(actions, joint))
     reset.on_click(lambda _: _reset(section, actions))
     return section
 
 
-GLOBAL_NAME, SHAPE_NAME = "All joints", "Shape spread"
+def _control(gui: viser.GuiApi, name: str) -> FactorControl:
+    return FactorControl(gui, name, CONCENTRATION_EXPONENT_RANGE, FACTOR_HINT)
 
 
-def _exponent_slider(gui: viser.GuiApi, name: str) -> viser.GuiSliderHandle:
-    low, high = CONCENTRATION_EXPONENT_RANGE
-    slider = gui.add_slider(
-        factor_label(name, 0.0), low, high, EXPONENT_STEP, 0.0, marks=EXPONENT_MARKS,
-        hint=EXPONENT_HINT,
-    )  # fmt: skip
-    return slider
+def _joint_listener(actions: StateActions, joint: str):
+    def listener(exponent: float) -> None:
+        actions.sampling_changed(actions.state.set_joint_exponent(joint, exponent))
 
-
-def factor_label(name: str, exponent: float) -> str:
-    """A slider's label: its name and the factor ``10 ** exponent`` ("left elbow · 0.5×")."""
-    factor = 10.0 ** float(exponent)
-    text = f"{factor:.2g}" if factor < 10 else f"{factor:.0f}"
-    return f"{name} · {text}×"
-
-
-def _show_factor(slider: viser.GuiSliderHandle, name: str) -> viser.GuiSliderHandle:
-    """Relabel ``slider`` (named ``name``) with the factor its value stands for; returns it."""
-    slider.label = factor_label(name, slider.value)
-    return slider
-
-
-def _joint_callback(actions: StateActions, joint: str, slider: viser.GuiSliderHandle):
-    def callback(_event: viser.GuiEvent) -> None:
-        _show_factor(slider, joint.replace("_", " "))
-        actions.sampling_changed(actions.state.set_joint_exponent(joint, slider.value))
-
-    return callback
+    return listener
 
 
 def _reset(section: ConcentrationSection, actions: StateActions) -> None:

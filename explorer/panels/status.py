@@ -10,7 +10,6 @@ from hkpd.explorer.body_text import body_sentence
 from hkpd.prediction.posterior import BodyPosterior
 
 PICKING_TEXT = "**Drag a box around the person** (Shift + drag on the photo)."
-BUSY_TEXT = "⏳ *Predicting…*"
 
 
 @dataclass(frozen=True)
@@ -32,10 +31,6 @@ class StatusSection:
     def show_picking(self) -> None:
         """Say in the status line that the next drag picks the person."""
         self.line.content = PICKING_TEXT
-
-    def show_busy(self) -> None:
-        """Say that a prediction is running (it can take a second on a CPU)."""
-        self.line.content = BUSY_TEXT
 
     def show_source(self, posterior: BodyPosterior) -> None:
         """Which distribution is shown, and why when the evidence fit fell back."""
