@@ -9,6 +9,7 @@ Examples::
     hkpd-eval runs/a/last.pt --poses poses.npz --coco coco_mini --evidence     # + 2D evidence
     hkpd-eval runs/a/last.pt --poses poses.npz --no-synthetic --multi-view-shape 100  # 5 photos
     hkpd-eval model.pt --poses poses.npz --shape --evidence --coco coco_mini --out run/report.md
+    hkpd-eval model.pt --poses poses.npz --no-synthetic --extremities 100 --out run/report.md
 
 With ``--shape`` (one checkpoint, ``--out`` required) it also scores how well the shape is read
 (``docs/shape.md``): on the synthetic test set fed detector-like keypoints and masks, R²
@@ -111,6 +112,15 @@ def _add_synthetic_arguments(parser: argparse.ArgumentParser) -> None:
         "(5 renders each: single image, mean and probabilistic combination; e.g. 100; with "
         "--evidence also through the evidence posterior, and with --silhouette-evidence the "
         "person mask too: ~0.3 s a view)",
+    )
+    parser.add_argument(
+        "--extremities",
+        type=int,
+        default=0,
+        metavar="COUNT",
+        help="also score the hands and feet on this many synthetic test examples, fitted with "
+        "and without BlazePose's hand and foot landmarks (vertex error, uncertainty, 50/90 %% "
+        "coverage, wrist/ankle rotations; e.g. 100, ~2 s each; with --out also extremities.json)",
     )
     parser.add_argument("--no-synthetic", action="store_true", help="skip the synthetic set")
 
@@ -259,6 +269,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--occlusion-cases must be >= 0")
         if arguments.multi_view_shape < 0:
             raise ValueError("--multi-view-shape must be >= 0")
+        if arguments.extremities < 0:
+            raise ValueError("--extremities must be >= 0")
         for flag, path in (("--out", arguments.out), ("--figure", arguments.figure)):
             if path is not None:
                 _check_writable(flag, path)
@@ -469,6 +481,8 @@ def _evaluate(arguments: argparse.Namespace, device: torch.device) -> tuple[str,
         report.append(_occlusion_report(arguments, device))
     if arguments.multi_view_shape > 0:
         report.append(_multi_view_shape_report(arguments, device))
+    if arguments.extremities > 0:
+        report.append(_extremity_report(arguments, device))
     if arguments.shape:
         text, shape = _shape_evaluation(arguments, device)
         report.append(text)
@@ -589,6 +603,29 @@ def _occlusion_report(arguments: argparse.Namespace, device: torch.device) -> st
         "forearm or lower leg covered by a black box\n\n"
         + markdown_table(rows, list(next(iter(rows.values()))))
     )
+
+
+def _extremity_report(arguments: argparse.Namespace, device: torch.device) -> str:
+    """Hands and feet with and without the landmark term (:mod:`hkpd.evaluation.extremity_eval`)
+    for every checkpoint; with ``--out`` the records go to ``extremities.json`` beside it."""
+    from hkpd.evaluation import extremity_eval
+
+    mirror, read = _mirror_reading(arguments)
+    records, parts = {}, []
+    for checkpoint in arguments.checkpoints:
+        record = extremity_eval.evaluate_extremity_synthetic(
+            checkpoint, arguments.poses, arguments.extremities, arguments.samples, device, mirror
+        )
+        records[str(checkpoint)] = record
+        parts.append(extremity_eval.extremity_markdown(
+            record, f"Hands and feet on the synthetic test set: {checkpoint}, keypoints alone "
+            f"vs keypoints + hand and foot landmarks (detector-like noise on both{read})",
+        ))  # fmt: skip
+    if arguments.out is not None:
+        _write_atomically(
+            arguments.out.with_name("extremities.json"), extremity_eval.extremity_json_text(records)
+        )
+    return "\n".join(parts)
 
 
 def _mirror_reading(arguments: argparse.Namespace) -> tuple[bool, str]:
