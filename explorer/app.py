@@ -26,6 +26,7 @@ import viser
 from hkpd.distributions import MatrixFisher
 from hkpd.explorer.app_body import BodyAppActions
 from hkpd.explorer.app_keeping import KeepingActions
+from hkpd.explorer.app_turning import TurnAppActions
 from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
 from hkpd.explorer.caption_numbers import numbers_sentence
 from hkpd.explorer.change_baseline import BaselineCache, BaselineKey
@@ -107,7 +108,7 @@ class Timings:
     """B's sampling and drawing after A's (0 without a comparison)."""
 
 
-class ExplorerApp(KeepingActions, BodyAppActions):
+class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
     """The running explorer (its scene and compare actions: :mod:`hkpd.explorer.app_keeping`;
     its Body section's: :mod:`hkpd.explorer.app_body`).
 
@@ -181,7 +182,7 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         self.scene = ExplorerScene(self.server)
-        self.compare = Comparison(self._provider_predict)
+        self.compare = Comparison(self._compare_predict)
         self.compare_columns = CompareColumns(self.server)
         self.keeper = SceneKeeper(self)
         self.panels = build_panels(self.server, self)
@@ -536,6 +537,7 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         except NoPersonFoundError:
             self._no_person(image, token)
             return
+        result = self._turned(result)  # as the Facing folder asks
         self.timings.predict = time.perf_counter() - started
         key = _baseline_key(token, snapshot.person_box, snapshot)
         self._show_prediction(result, image, token, key, not snapshot.active_boxes)
@@ -578,6 +580,7 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         self.scene.show_person_box(self.state.snapshot().person_box)
         self.panels.status.source.content = ""
         self._show_body(None)
+        self._show_turn(None)
         advice = (
             "No person was found. Click **Pick the person**, then drag a box around them on "
             "the photo."
@@ -675,6 +678,7 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         self.scene.show_keypoints(
             posterior.keypoints.cpu().numpy(), posterior.confidences.cpu().numpy()
         )
+        self._show_turn(posterior)
         self.panels.teaching.show_proxy(result.proxy)
         self.panels.teaching.show_shape_basis(
             posterior, result.proxy, None if overlay is None else overlay.rgba
@@ -808,7 +812,7 @@ class ExplorerApp(KeepingActions, BodyAppActions):
         result = self._provider_predict(
             image, [], key.evidence, key.silhouette, bbox=key.person_box, stated=key.stated
         )
-        return result.posterior
+        return self._turned(result, key.turned).posterior
 
     def _export_job(self, file_format: str, client: viser.ClientHandle) -> None:
         view = self.view
@@ -889,7 +893,7 @@ def _baseline_key(token: int, person_box: Box | None, snapshot: StateSnapshot) -
     """The baseline key of a prediction of photo ``token`` with the snapshot's evidence."""
     return BaselineKey(
         token, person_box, snapshot.evidence, snapshot.evidence and snapshot.silhouette,
-        snapshot.stated,
+        snapshot.stated, snapshot.turned_around,
     )  # fmt: skip
 
 

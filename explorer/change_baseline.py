@@ -37,6 +37,7 @@ class BaselineKey:
         silhouette: the person mask was fitted too.
         stated: what was stated about the body (sex, measurements): a posterior predicted
             with other stated values is another person's body, never this key's.
+        turned: the turned-around reading (*Turn around*).
     """
 
     image_token: int
@@ -44,6 +45,7 @@ class BaselineKey:
     evidence: bool
     silhouette: bool = False
     stated: BodyStatement = NOTHING_STATED
+    turned: bool = False
 
 
 class BaselineCache:

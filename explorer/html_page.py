@@ -134,6 +134,11 @@ def describe_scene(
     """The caption of a scene showing ``posterior`` (see :class:`SceneCaption`);
     ``concentration_factors``: ``(23,)`` factor per body joint (empty or all 1: as predicted)."""
     evidence = re.sub(r" \(fit \d+ ms\)", "", source_text(posterior).strip("*"))
+    if getattr(posterior, "turned", False):
+        evidence += (
+            " Turned around: the same keypoints fitted by a body facing the other way (left "
+            "and right swapped)."
+        )
     scaled = tuple(
         (name, float(factor))
         for name, factor in zip(BODY_JOINT_NAMES, concentration_factors, strict=False)

@@ -165,6 +165,8 @@ class SceneFile:
         sex: the stated sex ("female", "male") or None (the photo decides).
         measurements: stated measurements, ``{name: [value, std]}`` in metres and kilograms
             (:data:`hkpd.stated_body.MEASUREMENT_NAMES`).
+        turned_around: show the person's turned-around reading (*Turn around*; a file
+            without this entry, written before it existed, reads as False).
     """
 
     photo: PhotoRef
@@ -181,6 +183,7 @@ class SceneFile:
     compare: str | None = None
     sex: str | None = None
     measurements: dict[str, list[float]] = field(default_factory=dict)
+    turned_around: bool = False
 
     def __post_init__(self) -> None:
         _check_settings(self)
@@ -340,3 +343,5 @@ def _check_settings(scene: SceneFile) -> None:
         raise SceneFileError(f"stated body: {error}") from None
     if not isinstance(scene.seed, int) or scene.seed < 0:
         raise SceneFileError(f"the seed must be a whole number >= 0, got {scene.seed!r}")
+    if not isinstance(scene.turned_around, bool):
+        raise SceneFileError(f"turned_around must be true or false, got {scene.turned_around!r}")

@@ -97,6 +97,7 @@ class SceneKeeper:
             compare=None if setting is None else setting.text,
             sex=snapshot.stated.sex,
             measurements={name: [v, s] for name, (v, s) in snapshot.stated.values().items()},
+            turned_around=snapshot.turned_around,
         )
 
     def scene(self) -> SceneFile:
@@ -146,6 +147,7 @@ class SceneKeeper:
         app.set_compare(None if scene.compare is None else parse_compare(scene.compare))
         if app.states_body:
             app.state_body(BodyStatement.from_stated(scene.stated()))
+        app.set_turned_around(scene.turned_around)
 
     def reset(self) -> None:
         """Every setting back to its default (the photo stays; its boxes go)."""
@@ -282,4 +284,6 @@ def describe_differences(scene: SceneFile) -> list[str]:
     stated = BodyStatement.from_stated(scene.stated())
     if not stated.empty:
         found.append(f"stated: {stated.summary()}")
+    if scene.turned_around:
+        found.append("turned around")
     return found

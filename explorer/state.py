@@ -130,6 +130,7 @@ class StateSnapshot:
     same_person: tuple[SamePersonShape, ...] = ()
     silhouette: bool = False
     stated: BodyStatement = NOTHING_STATED
+    turned_around: bool = False
 
     @property
     def active_boxes(self) -> list[tuple[float, float, float, float]]:
@@ -163,6 +164,7 @@ class ExplorerState:
     evidence: bool = True
     person_box: tuple[float, float, float, float] | None = None
     silhouette: bool = False
+    turned_around: bool = False
     _occluders: list[Occluder] = field(default_factory=list)
     _joint_exponents: list[float] = field(default_factory=lambda: [0.0] * NUM_BODY_JOINTS)
     _global_exponent: float = 0.0
@@ -195,6 +197,7 @@ class ExplorerState:
                 same_person=tuple(self._same_person),
                 silhouette=self.silhouette,
                 stated=self._stated,
+                turned_around=self.turned_around,
             )
 
     def occluder(self, ident: int) -> Occluder:
@@ -210,8 +213,8 @@ class ExplorerState:
         self, width: int, height: int, person_box: tuple[float, float, float, float] | None = None
     ) -> None:
         """A new photo: its size, no occluders, no person box, no further photos of the same
-        person and nothing stated about the body (they belong to the old photo's person) unless
-        ``person_box`` is given; concentration edits are kept."""
+        person, nothing stated about the body and not turned around (they belong to the old
+        photo's person) unless ``person_box`` is given; concentration edits are kept."""
         if width < 1 or height < 1:
             raise ValueError(f"image size must be positive, got {width}x{height}")
         with self._lock:
@@ -220,6 +223,7 @@ class ExplorerState:
             self._next_ident = 1
             self._same_person.clear()
             self._stated = NOTHING_STATED
+            self.turned_around = False
             self.person_box = None if person_box is None else clamp_box(person_box, width, height)
             self._prediction_version += 1
 
@@ -240,6 +244,17 @@ class ExplorerState:
             if self.evidence == bool(enabled):
                 return False
             self.evidence = bool(enabled)
+            self._prediction_version += 1
+            return True
+
+    def set_turned_around(self, enabled: bool) -> bool:
+        """Show the turned-around reading of the person (True: the same keypoints fitted by a
+        body facing the other way, :meth:`hkpd.prediction.BodyPosterior.turned_around`) or
+        the reading as predicted."""
+        with self._lock:
+            if self.turned_around == bool(enabled):
+                return False
+            self.turned_around = bool(enabled)
             self._prediction_version += 1
             return True
 

@@ -30,6 +30,7 @@ from hkpd.explorer.panels.same_person import (
 from hkpd.explorer.panels.samples import SamplesActions, SamplesSection, build_samples_section
 from hkpd.explorer.panels.status import StatusSection, build_status_section
 from hkpd.explorer.panels.teaching import TeachingSection, build_teaching_section
+from hkpd.explorer.panels.turn import TurnActions, TurnSection, build_turn_section
 
 
 class PanelActions(
@@ -40,6 +41,7 @@ class PanelActions(
     KeepActions,
     CompareActions,
     BodyActions,
+    TurnActions,
     Protocol,
 ):
     """Everything the panel may ask of the app (``ExplorerApp`` implements it): the union of
@@ -61,6 +63,7 @@ class ExplorerPanels:
     keep: KeepSection
     compare: CompareSection
     body: BodySection
+    turn: TurnSection
 
 
 def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPanels:
@@ -76,6 +79,7 @@ def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPa
     tabs = gui.add_tab_group()
     with tabs.add_tab("Photo", viser.Icon.PHOTO):
         photo = build_photo_section(gui, actions)
+        turn = build_turn_section(gui, actions)
         body = build_body_section(gui, actions)
         same_person = build_same_person_section(gui, actions)
         keep = build_keep_section(gui, actions)  # last: "Load a photo" stays the first upload
@@ -88,7 +92,7 @@ def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPa
         teaching = build_teaching_section(gui, actions)
     return ExplorerPanels(
         status, photo, same_person, concentration, samples, export, teaching, keep, compare,
-        body,
+        body, turn,
     )  # fmt: skip
 
 
