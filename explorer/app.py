@@ -34,6 +34,7 @@ from hkpd.explorer.colour_map import HeatmapScale
 from hkpd.explorer.compare import Comparison
 from hkpd.explorer.compare_scene import COMPARE_HEAT_OFFSET, CompareColumns
 from hkpd.explorer.export import meshes_file, png_bytes
+from hkpd.explorer.extremity_marks import ExtremityMarks
 from hkpd.explorer.html_page import SceneCaption, describe_scene, scene_page
 from hkpd.explorer.notices import NOTICES
 from hkpd.explorer.panels import build_panels
@@ -182,6 +183,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         self.scene = ExplorerScene(self.server)
+        self.landmark_marks = ExtremityMarks(self.scene)  # the detected hand/foot landmarks
         self.compare = Comparison(self._compare_predict)
         self.compare_columns = CompareColumns(self.server)
         self.keeper = SceneKeeper(self)
@@ -304,6 +306,10 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             self.scene.show_fit_overlay(None, None)
         else:
             self.scene.show_fit_overlay(overlay.with_opacity(opacity), overlay.box)
+
+    def show_landmarks(self, visible: bool) -> None:
+        """Draw the detected hand and foot landmarks on the photo, or hide them."""
+        self.landmark_marks.set_visible(visible)
 
     def set_evidence(self, enabled: bool) -> None:
         """Condition on the photo's 2D keypoints, or show the network alone (predicts again)."""
@@ -579,6 +585,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         self.scene.show_occluders(self.state.snapshot().occluders)
         self.scene.show_person_box(self.state.snapshot().person_box)
         self.panels.status.source.content = ""
+        self.landmark_marks.show(None)
         self._show_body(None)
         self._show_turn(None)
         advice = (
@@ -679,6 +686,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             posterior.keypoints.cpu().numpy(), posterior.confidences.cpu().numpy()
         )
         self._show_turn(posterior)
+        self.landmark_marks.show(posterior)
         self.panels.teaching.show_proxy(result.proxy)
         self.panels.teaching.show_shape_basis(
             posterior, result.proxy, None if overlay is None else overlay.rgba

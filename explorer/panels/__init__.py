@@ -21,6 +21,7 @@ from hkpd.explorer.panels.compare import CompareActions, CompareSection, build_c
 from hkpd.explorer.panels.concentration import ConcentrationSection, build_concentration_section
 from hkpd.explorer.panels.export import ExportActions, ExportSection, build_export_section
 from hkpd.explorer.panels.keep import KeepActions, KeepSection, build_keep_section
+from hkpd.explorer.panels.landmarks import LandmarkActions, build_landmark_section
 from hkpd.explorer.panels.photo import PhotoActions, PhotoSection, build_photo_section
 from hkpd.explorer.panels.same_person import (
     SamePersonActions,
@@ -41,6 +42,7 @@ class PanelActions(
     KeepActions,
     CompareActions,
     BodyActions,
+    LandmarkActions,
     TurnActions,
     Protocol,
 ):
@@ -79,6 +81,7 @@ def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPa
     tabs = gui.add_tab_group()
     with tabs.add_tab("Photo", viser.Icon.PHOTO):
         photo = build_photo_section(gui, actions)
+        build_landmark_section(gui, actions)  # only calls actions.show_landmarks
         turn = build_turn_section(gui, actions)
         body = build_body_section(gui, actions)
         same_person = build_same_person_section(gui, actions)
