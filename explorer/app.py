@@ -183,7 +183,6 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         self.scene = ExplorerScene(self.server)
-        self.landmark_marks = ExtremityMarks(self.scene)  # the detected hand/foot landmarks
         self.compare = Comparison(self._compare_predict)
         self.compare_columns = CompareColumns(self.server)
         self.keeper = SceneKeeper(self)
@@ -306,6 +305,11 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             self.scene.show_fit_overlay(None, None)
         else:
             self.scene.show_fit_overlay(overlay.with_opacity(opacity), overlay.box)
+
+    @functools.cached_property
+    def landmark_marks(self) -> ExtremityMarks:
+        """The detected hand and foot landmarks on the photo (made at first use)."""
+        return ExtremityMarks(self.scene)
 
     def show_landmarks(self, visible: bool) -> None:
         """Draw the detected hand and foot landmarks on the photo, or hide them."""

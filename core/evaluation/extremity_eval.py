@@ -43,8 +43,11 @@ from hkpd.body.extremity_landmarks import (
 from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_keypoints
 from hkpd.conditioning.landmark_term import LandmarkConfig, LandmarkEvidence, LandmarkTerm
 from hkpd.distributions import BodyDistribution
+from hkpd.evaluation.test_set import fixed_batches, network_and_generator, stored_evidence_settings
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
 from hkpd.prediction.predictor import float64_body
+from hkpd.prediction.readings import ReadingConfig
+from hkpd.prediction.readings.proxy_reader import ProxyReader
 from hkpd.synthesis.batch import TrainingBatch
 from hkpd.synthesis.detector_noise import (
     DetectorNoise,
@@ -343,14 +346,6 @@ def evaluate_extremity_synthetic(
     """:func:`evaluate_extremity_batches` of one checkpoint on the first ``count`` examples of
     the fixed synthetic test set (``hkpd-eval``'s), read as the predictor reads (mirrored too
     when asked), with the checkpoint's stored evidence settings."""
-    from hkpd.evaluation.test_set import (
-        fixed_batches,
-        network_and_generator,
-        stored_evidence_settings,
-    )
-    from hkpd.prediction.readings import ReadingConfig
-    from hkpd.prediction.readings.proxy_reader import ProxyReader
-
     network, generator = network_and_generator(checkpoint, poses, device)
     reader = ProxyReader(
         network.eval(), ReadingConfig(mirror=mirror_reading), upright=False, body=generator.body
