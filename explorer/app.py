@@ -33,7 +33,7 @@ from hkpd.explorer.change_baseline import BaselineCache, BaselineKey
 from hkpd.explorer.colour_map import HeatmapScale
 from hkpd.explorer.compare import Comparison
 from hkpd.explorer.compare_scene import COMPARE_HEAT_OFFSET, CompareColumns
-from hkpd.explorer.export import meshes_file, png_bytes
+from hkpd.explorer.export import meshes_file
 from hkpd.explorer.extremity_marks import ExtremityMarks
 from hkpd.explorer.html_page import SceneCaption, describe_scene, scene_page
 from hkpd.explorer.notices import NOTICES
@@ -64,6 +64,7 @@ from hkpd.explorer.state import (
     StateSnapshot,
     clamp_box,
 )
+from hkpd.explorer.still_image import captioned_png
 from hkpd.explorer.upload import UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
 from hkpd.kinematic_tree import body_joint_index
@@ -843,9 +844,13 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
 
     def _screenshot_job(self, client: viser.ClientHandle) -> None:
         height, width = SCREENSHOT_SIZE
-        image = client.get_render(height, width, transport_format="png", timeout=30.0)
+        with self.scene.static_titles():  # a PNG says nothing of the live app
+            image = client.get_render(height, width, transport_format="png", timeout=30.0)
         self.last_screenshot = image
-        client.send_file_download("hkpd_explorer.png", png_bytes(image), save_immediately=True)
+        caption = self.page_caption()
+        text = "" if caption is None else caption.text(interactive=False)
+        png = captioned_png(image, text)  # cropped to the scene, captioned under it
+        client.send_file_download("hkpd_explorer.png", png, save_immediately=True)
 
     def _job_failed(self, lane: str, error: BaseException) -> None:
         message = f"{type(error).__name__}: {error}"

@@ -78,8 +78,9 @@ class SceneCaption:
         """A short title for the page (the browser tab)."""
         return f"hkpd: {self.photo}"
 
-    def text(self) -> str:
-        """The caption as plain sentences."""
+    def text(self, interactive: bool = True) -> str:
+        """The caption as plain sentences; ``interactive``: for a page (it ends with how to
+        turn the view), else for a still image (a PNG)."""
         if self.occluders:
             boxes = "; ".join(
                 "#{} ({:.0f}, {:.0f})-({:.0f}, {:.0f})".format(i + 1, *box)
@@ -112,10 +113,27 @@ class SceneCaption:
             f"Left: the photo with the detected keypoints and the most likely body drawn over "
             f"it. Middle: the most likely body and {self.num_displayed} of "
             f"{self.num_samples} samples. Right: each vertex coloured by {colour} (colour bar "
-            f"below it).{compare} {self.numbers} Drag to orbit, scroll to zoom."
+            f"below it).{compare} {self.numbers}"
+            + (" Drag to orbit, scroll to zoom." if interactive else "")
         )
         text = " ".join(text.split())
         return f"{text} Scene: {self.scene_source}." if self.scene_source else text
+
+
+LIVE_APP_ONLY = (
+    re.compile(r"\s*\(fit \d+ ms\)"),  # how long the fit took on this machine, this time
+    re.compile(r"\s*\([^()]*›[^()]*\)"),  # "(state the sex in Photo › Body)": a panel path
+    re.compile(r"\*+"),  # markdown emphasis: a page shows plain text
+)
+"""What the live app's status line says that a saved page or PNG must not."""
+
+
+def static_text(markdown: str) -> str:
+    """A status line (markdown) as a saved page's plain sentences: without fit timings,
+    pointers to the live panel ("Photo › Body") and markdown emphasis."""
+    for pattern in LIVE_APP_ONLY:
+        markdown = pattern.sub("", markdown)
+    return " ".join(markdown.split())
 
 
 def describe_scene(
@@ -133,7 +151,7 @@ def describe_scene(
 ) -> SceneCaption:
     """The caption of a scene showing ``posterior`` (see :class:`SceneCaption`);
     ``concentration_factors``: ``(23,)`` factor per body joint (empty or all 1: as predicted)."""
-    evidence = re.sub(r" \(fit \d+ ms\)", "", source_text(posterior).strip("*"))
+    evidence = static_text(source_text(posterior))
     if getattr(posterior, "turned", False):
         evidence += (
             " Turned around: the same keypoints fitted by a body facing the other way (left "
