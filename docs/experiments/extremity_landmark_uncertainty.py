@@ -7,7 +7,8 @@ body parts the issue tracks (forearm, hand, fingers, shin, foot, toes; the body 
 labels: each joint's segment), per side, in cm; which of the side's landmarks were evidence;
 then, with the landmarks on, a box over each hand and foot (the detected wrist or ankle and
 that extremity's landmarks, padded by 6 % of the person box's longer side) and the covered
-part's uncertainty ratio (covered / clear, hand + fingers or foot + toes). Last, the time of
+part's uncertainty ratio (covered / clear, hand + fingers or foot + toes); the hand's and foot's
+spread about their wrist or ankle joint (:func:`about_joint`), off and on. Last, the time of
 photo -> posterior + 100-sample uncertainty (median of ``--repeats``), both ways.
 
     python docs/experiments/extremity_landmark_uncertainty.py assets/photos/warrior_lunge.jpg \\
@@ -52,6 +53,28 @@ def part_means(posterior: BodyPosterior, side: str) -> dict[str, float]:
         column: 100 * float(spread[labels == body.part_names.index(f"{side}_{label}")].mean())
         for column, label in PARTS.items()
     }
+
+
+JOINT_OF = {"hand": "wrist", "fingers": "wrist", "foot": "ankle", "toes": "ankle"}
+"""Column -> the joint its spread is also measured about."""
+
+
+def about_joint(posterior: BodyPosterior, side: str) -> dict[str, float]:
+    """Mean per-vertex spread (cm) of the hand, fingers, foot and toes on ``side`` about their
+    wrist or ankle joint (each of 100 samples, seed 0, less its own joint position): the spread
+    the hand's or foot's own turn leaves, without where the forearm or shin puts the joint."""
+    drawn = posterior.sample(100, seed=0)
+    body = posterior.body
+    labels = body.part_labels.to(drawn.vertices.device)
+    result = {}
+    for column, joint in JOINT_OF.items():
+        rows = labels == body.part_names.index(f"{side}_{PARTS[column]}")
+        local = (
+            drawn.vertices[:, rows]
+            - drawn.joints[:, body.joint_names.index(f"{side}_{joint}")][:, None]
+        )
+        result[column] = 100 * float((local - local.mean(0)).norm(dim=-1).mean())
+    return result
 
 
 def extremity_box(posterior: BodyPosterior, side: str, kind: str) -> np.ndarray:
@@ -119,7 +142,7 @@ def main() -> None:
     columns = " | ".join(PARTS)
     print(f"| photo | side | landmarks | shown | {columns} |")
     print("|---|---|---|---|" + "---|" * len(PARTS))
-    covered_rows, timing_rows = [], []
+    covered_rows, timing_rows, joint_rows = [], [], []
     for photo in args.photos:
         name = Path(photo).name
         for landmarks in (False, True):
@@ -129,11 +152,20 @@ def main() -> None:
                 values = " | ".join(f"{v:.1f}" for v in part_means(posterior, side).values())
                 print(f"| {name} | {side} | {'on' if landmarks else 'off'} | "
                       f"{shown(posterior, side)} | {values} |")  # fmt: skip
+                local = " | ".join(f"{v:.1f}" for v in about_joint(posterior, side).values())
+                joint_rows.append(f"| {name} | {side} | {'on' if landmarks else 'off'} | {local} |")
         covered_rows += covered_ratios(predictor, photo, posterior)
         for landmarks in (False, True) if args.repeats else ():
             predictor.landmark_evidence = landmarks
             timing_rows.append(f"| {name} | {'on' if landmarks else 'off'} | "
                                f"{1000 * timed(predictor, photo, args.repeats):.0f} |")  # fmt: skip
+    print(
+        "\n| photo | side | landmarks | "
+        + " | ".join(f"{c} about its {j}" for c, j in JOINT_OF.items())
+        + " |"
+    )
+    print("|---|---|---|" + "---|" * len(JOINT_OF))
+    print("\n".join(joint_rows))
     print("\n| photo | box over | ratio covered / clear, landmarks off | landmarks on |")
     print("|---|---|---|---|")
     print("\n".join(covered_rows))
