@@ -3,11 +3,12 @@ captioned, so that a PNG put on a slide says what it is.
 
 The browser renders the whole canvas (``client.get_render``), framed for the live app: room
 for the floating panel on the right and empty space above and below the bodies, so most of it
-is background. :func:`captioned_png` crops the render to its content (every pixel that differs
-from the background, with a small margin), writes the page caption (photo, person, evidence,
-boxes, samples, the posterior's numbers: :meth:`hkpd.explorer.html_page.SceneCaption.text`
-without the page's "drag to orbit") in a strip under it, and keeps the caption in the PNG's
-``Description`` text chunk as well.
+is background (transparent: :func:`on_white` puts it on white). :func:`captioned_png` crops
+the render to its content (every pixel that differs from the background, with a small
+margin), writes the page caption (photo, person, evidence, boxes, samples, the posterior's
+numbers: :meth:`hkpd.explorer.html_page.SceneCaption.text` without the page's "drag to
+orbit") in a strip under it, and keeps the caption in the PNG's ``Description`` text chunk as
+well.
 """
 
 from __future__ import annotations
@@ -20,6 +21,11 @@ from PIL.PngImagePlugin import PngInfo
 
 BACKGROUND_TOLERANCE = 12
 """A pixel differs from the background when a channel differs by more than this (0-255)."""
+CONTENT_DIFFERENCE = 70
+"""A grey pixel is content (for the crop) when it differs from the background by more than
+this; the floor grid's lines differ by up to ~62 on a white background."""
+CONTENT_CHROMA = 20
+"""A pixel whose channels are this far apart is coloured: content even when light."""
 MARGIN_FRACTION = 0.03
 """Margin kept around the content, as a fraction of the content's larger side."""
 CAPTION_FONT_PX = 15
@@ -27,6 +33,18 @@ CAPTION_PADDING_PX = 12
 CAPTION_INK = (34, 34, 34)
 MIN_CAPTION_WIDTH_PX = 640
 """A crop narrower than this is widened (centred) so that the caption keeps readable lines."""
+
+
+def on_white(image: np.ndarray) -> np.ndarray:
+    """``(H, W, 3)`` uint8: an RGBA render composited over white (the browser renders the
+    canvas background transparent, which most viewers show black or chequered), an RGB one
+    as it is."""
+    array = np.asarray(image)
+    if array.shape[2] == 3:
+        return array
+    alpha = array[..., 3:].astype(np.float32) / 255.0
+    mixed = array[..., :3].astype(np.float32) * alpha + 255.0 * (1.0 - alpha)
+    return np.round(mixed).astype(np.uint8)
 
 
 def background_colour(image: np.ndarray) -> np.ndarray:
@@ -44,13 +62,26 @@ def non_background_share(image: np.ndarray, background: np.ndarray | None = None
     return float(np.mean(np.abs(rgb - colour.astype(np.int16)).max(axis=-1) > BACKGROUND_TOLERANCE))
 
 
-def content_crop(image: np.ndarray) -> np.ndarray:
-    """``image`` ``(H, W, 3|4)`` uint8 cropped to the pixels that differ from its background,
-    with a :data:`MARGIN_FRACTION` margin (the whole image when nothing differs)."""
+def content_mask(image: np.ndarray) -> np.ndarray:
+    """``(H, W)`` bool: the pixels of ``image`` ``(H, W, 3|4)`` that show something, i.e.
+    differ from the background by more than :data:`CONTENT_DIFFERENCE` or are coloured
+    (channels :data:`CONTENT_CHROMA` apart); the floor grid's faint grey lines, which run the
+    whole width of the canvas, are not content."""
     rgb = np.asarray(image)[..., :3].astype(np.int16)
     differs = np.abs(rgb - background_colour(image).astype(np.int16)).max(axis=-1)
-    rows = np.flatnonzero((differs > BACKGROUND_TOLERANCE).any(axis=1))
-    cols = np.flatnonzero((differs > BACKGROUND_TOLERANCE).any(axis=0))
+    chroma = rgb.max(axis=-1) - rgb.min(axis=-1)
+    return (differs > CONTENT_DIFFERENCE) | (
+        (differs > BACKGROUND_TOLERANCE) & (chroma > CONTENT_CHROMA)
+    )
+
+
+def content_crop(image: np.ndarray) -> np.ndarray:
+    """``image`` ``(H, W, 3|4)`` uint8 cropped to its :func:`content_mask`, with a
+    :data:`MARGIN_FRACTION` margin (the whole image when nothing shows)."""
+    rgb = np.asarray(image)[..., :3]
+    mask = content_mask(image)
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
     if rows.size == 0:
         return np.asarray(image)
     margin = round(MARGIN_FRACTION * max(rows[-1] - rows[0], cols[-1] - cols[0]))
@@ -95,10 +126,11 @@ def captioned_image(render: np.ndarray, caption: str) -> np.ndarray:
     array = np.asarray(render)
     if array.ndim != 3 or array.shape[2] not in (3, 4) or array.dtype != np.uint8:
         raise ValueError(f"expected an (H, W, 3|4) uint8 render, got {array.shape} {array.dtype}")
-    cropped = content_crop(array)[..., :3]
+    flat = on_white(array)
+    cropped = content_crop(flat)
     if not caption.strip():
         return np.ascontiguousarray(cropped)
-    strip = caption_strip(caption, cropped.shape[1], background_colour(array))
+    strip = caption_strip(caption, cropped.shape[1], background_colour(flat))
     return np.concatenate([cropped, strip], axis=0)
 
 

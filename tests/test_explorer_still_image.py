@@ -15,6 +15,7 @@ from hkpd.explorer.still_image import (
     captioned_png,
     content_crop,
     non_background_share,
+    on_white,
 )
 
 CAPTION = SceneCaption(
@@ -25,13 +26,15 @@ CAPTION = SceneCaption(
 
 
 def render_like_the_app() -> np.ndarray:
-    """A 720 x 1280 render as the live app frames it: white canvas, the photo and three body
-    columns in a band in the left part (room for the panel on the right), RGBA."""
-    image = np.full((720, 1280, 4), 255, np.uint8)
+    """A 720 x 1280 RGBA render as the browser sends it for the live app's framing: a
+    transparent canvas, the photo and three body columns in a band in the left part (room for
+    the panel on the right)."""
+    image = np.zeros((720, 1280, 4), np.uint8)
     rng = np.random.default_rng(0)
     image[250:470, 60:230, :3] = rng.integers(0, 200, (220, 170, 3))  # the photo
     for x in (300, 470, 640):  # mode + samples, uncertainty body, B
         image[240:480, x : x + 90, :3] = (120, 140, 200)
+    image[240:480, 60:730, 3] = 255
     return image
 
 
@@ -43,9 +46,10 @@ def test_the_png_is_cropped_to_the_scene_and_says_what_it_shows() -> None:
     still = Image.open(io.BytesIO(png))
     assert still.text["Description"] == text  # the caption travels with the file
     pixels = np.asarray(still.convert("RGB"))
-    before, after = non_background_share(render), non_background_share(pixels)
-    assert before < 0.15 and after > 0.35, (before, after)  # measured: 0.11 -> 0.41
-    scene_rows = content_crop(render).shape[0]
+    assert (pixels[0, 0] == 255).all()  # the transparent canvas comes out white
+    before, after = non_background_share(on_white(render)), non_background_share(pixels)
+    assert before < 0.2 and after > 0.5, (before, after)  # measured: 0.17 -> 0.61
+    scene_rows = content_crop(on_white(render)).shape[0]
     strip = pixels[scene_rows:]
     assert strip.shape[0] > 30 and non_background_share(strip) > 0.02  # the caption is drawn
     assert pixels.shape[1] < render.shape[1] and pixels.shape[0] < render.shape[0] + 200
