@@ -28,13 +28,22 @@ from hkpd.explorer.app_body import BodyAppActions
 from hkpd.explorer.app_keeping import KeepingActions
 from hkpd.explorer.app_turning import TurnAppActions
 from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
+from hkpd.explorer.canvas_key import CanvasKey
 from hkpd.explorer.caption_numbers import numbers_sentence
 from hkpd.explorer.change_baseline import BaselineCache, BaselineKey
 from hkpd.explorer.colour_map import HeatmapScale
 from hkpd.explorer.compare import Comparison
-from hkpd.explorer.compare_scene import COMPARE_HEAT_OFFSET, CompareColumns
+from hkpd.explorer.compare_scene import CompareColumns
 from hkpd.explorer.export import meshes_file
 from hkpd.explorer.extremity_marks import ExtremityMarks
+from hkpd.explorer.framing import (
+    ASSUMED_ASPECT,
+    CAMERA_FOV_DEG,
+    FREE_CANVAS_FRACTION,
+    PANEL_WIDTH_PX,
+    body_reach,
+    framing,
+)
 from hkpd.explorer.html_page import SceneCaption, describe_scene, scene_page
 from hkpd.explorer.notices import NOTICES
 from hkpd.explorer.panels import build_panels
@@ -54,7 +63,7 @@ from hkpd.explorer.provider import (
     PredictionResult,
 )
 from hkpd.explorer.same_person_shapes import combined_photos
-from hkpd.explorer.scene import COMBINED_OFFSET, HEATMAP_OFFSET, PHOTO_GAP, ExplorerScene
+from hkpd.explorer.scene import PHOTO_GAP, ExplorerScene
 from hkpd.explorer.scene_file import PhotoRef
 from hkpd.explorer.scene_keeping import SceneKeeper
 from hkpd.explorer.state import (
@@ -80,17 +89,6 @@ PEOPLE_SEARCH_DELAY_S = 0.3
 """The person search for the menu waits this long after a new photo's first view, so that the
 view reaches the browsers before the search takes the CPU."""
 
-CAMERA_FOV_DEG = 40.0
-ASSUMED_ASPECT = 1.6
-"""Canvas width / height the first view is framed for (a laptop browser window)."""
-FREE_CANVAS_FRACTION = 0.7
-"""Part of the canvas width not covered by the floating control panel (before a tab reports
-its canvas size)."""
-PANEL_WIDTH_PX = 420
-"""Width of viser's floating panel ("large" controls) plus its margin, CSS pixels."""
-BODY_HALF_SPAN_M = 0.95
-"""Half the arm span the framing leaves room for right of the uncertainty body's centre
-(outstretched arms reach ~0.85 m), so its hand never goes under the panel."""
 PLAIN_PHOTO_HEIGHT_M = 2.0
 """Height of a photo drawn before any person was found in it (a person-sized photo)."""
 WEAK_EVIDENCE_KEYPOINTS = 6
@@ -184,13 +182,13 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         self.server = viser.ViserServer(host=host, port=port, label="hkpd explorer", verbose=False)
         self.server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         self.scene = ExplorerScene(self.server)
+        self.key = CanvasKey(self.server)  # what the drawings mean, under the photo
         self.compare = Comparison(self._compare_predict)
         self.compare_columns = CompareColumns(self.server)
         self.keeper = SceneKeeper(self)
         self.panels = build_panels(self.server, self)
         self.panels.photo.silhouette.visible = self.fits_person_mask
-        self.progress = Progress(self.server, self.panels.status)
-        self.worker.on_job_end = lambda _lane: self.progress.done()
+        self.progress = Progress(self.server, self.panels.status, self.worker)
         self.server.scene.on_rect_select(modifier="shift")(self._on_rect_select)
         self.server.on_client_connect(lambda client: self._frame_client(client, wait_s=5.0))
         self._plain_drag = False
@@ -440,6 +438,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         if rescaled:
             scene.heatmap = scale
             scene.show_legend()
+            self.key.show(colouring=scale.kind)
             if scene.placement is not None:  # the column titles follow the colouring
                 scene.show_titles(scene.titles_top)
             if scene.combined_shown:  # recolour the combined shape (and its colour bar)
@@ -607,6 +606,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         the ``"people"`` lane after :data:`PEOPLE_SEARCH_DELAY_S` (after the first view is
         sent: the person search reads the photo 10 times)."""
         self.scene.place_photo(image, placement)
+        self.key.show(placement, self.scene.heatmap.kind)
         self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
         self._frame_camera(placement)
         if token != self._people_token:
@@ -867,7 +867,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             self._framed = placement
         position, look_at = framing(
             placement, ASSUMED_ASPECT, combined=self.scene.combined_shown,
-            compare=self.compare_columns.shown,
+            compare=self.compare_columns.shown, reach=body_reach(self.result),
         )  # fmt: skip
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
@@ -893,7 +893,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
                     time.sleep(0.05)
         position, look_at = framing(
             placement, aspect, float(np.clip(free, 0.5, 1.0)), self.scene.combined_shown,
-            self.compare_columns.shown,
+            self.compare_columns.shown, body_reach(self.result),
         )  # fmt: skip
         client.camera.position = position
         client.camera.look_at = look_at
@@ -912,38 +912,6 @@ def _baseline_key(token: int, person_box: Box | None, snapshot: StateSnapshot) -
         token, person_box, snapshot.evidence, snapshot.evidence and snapshot.silhouette,
         snapshot.stated, snapshot.turned_around,
     )  # fmt: skip
-
-
-def framing(
-    placement: PhotoPlacement,
-    aspect: float,
-    free_fraction: float = FREE_CANVAS_FRACTION,
-    combined: bool = False,
-    compare: bool = False,
-) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    """Camera ``(position, look_at)`` showing photo, bodies and heatmap left of the panel.
-
-    Args:
-        placement: where the photo is.
-        aspect: canvas width / height.
-        free_fraction: part of the canvas width left of the floating panel.
-        combined: also show the combined-shape body of the same person's photos.
-        compare: also show the compare columns (B).
-    """
-    left = placement.centre[0] - placement.width_m / 2 - 0.1
-    right = (COMBINED_OFFSET if combined else HEATMAP_OFFSET) + BODY_HALF_SPAN_M
-    if compare:
-        right = max(right, COMPARE_HEAT_OFFSET + BODY_HALF_SPAN_M)
-    top = max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.25
-    bottom = min(placement.centre[1] - placement.height_m / 2, -1.45) - 0.1
-    tan_v = math.tan(math.radians(CAMERA_FOV_DEG) / 2)
-    tan_h = tan_v * aspect
-    # The content should fill the part of the canvas that the floating panel leaves free.
-    visible_width = (right - left) / free_fraction
-    distance = max(visible_width / (2 * tan_h), (top - bottom) / (2 * tan_v))
-    shift = (0.5 - free_fraction / 2) * 2 * distance * tan_h
-    centre = ((left + right) / 2 + shift, (top + bottom) / 2)
-    return (centre[0], centre[1] + 0.1, distance), (centre[0], centre[1], 0.0)
 
 
 def photo_placement(result: PredictionResult, width: int, height: int) -> PhotoPlacement:

@@ -15,6 +15,8 @@ import contextlib
 import threading
 from typing import Any
 
+from hkpd.explorer.worker import CoalescingWorker
+
 PREDICT = "Predicting the posterior"
 SAMPLE = "Drawing the samples and the uncertainty"
 SEND = "Sending the bodies to the browser"
@@ -32,10 +34,18 @@ class Progress:
         server: the ``viser.ViserServer`` whose tabs are told.
         status: the status section (:class:`~hkpd.explorer.panels.status.StatusSection`) whose
             line repeats the notice.
+        worker: the app's :class:`~hkpd.explorer.worker.CoalescingWorker` (None: the caller
+            calls :meth:`done`); every job it ends ends the notice.
         show_after_s: how long a job runs before its sign is shown.
     """
 
-    def __init__(self, server: Any, status: Any, show_after_s: float = SHOW_AFTER_S) -> None:
+    def __init__(
+        self,
+        server: Any,
+        status: Any,
+        worker: CoalescingWorker | None = None,
+        show_after_s: float = SHOW_AFTER_S,
+    ) -> None:
         self.server, self.status, self.show_after_s = server, status, show_after_s
         self._lock = threading.Lock()
         self._plan: tuple[str, ...] = ()
@@ -47,6 +57,8 @@ class Progress:
         self._status: tuple[str, str] | None = None
         """The status line before this job wrote to it, and what it wrote."""
         server.on_client_connect(self._connected)
+        if worker is not None:
+            worker.on_job_end = lambda _lane: self.done()
 
     @property
     def text(self) -> str:
