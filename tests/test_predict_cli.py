@@ -258,6 +258,9 @@ def test_summary_json(run_result, checkpoint, photos):
     for name in summary["files"]:
         assert (run_result["out"] / "person" / name).is_file(), name
     assert "samples/sample_000.glb" in summary["files"]
+    quality = summary["quality"]  # BodyPosterior.quality (hkpd.prediction.quality)
+    assert set(quality) == {"score", "flags"} and 0.0 <= quality["score"] <= 1.0
+    assert isinstance(quality["flags"], list) and all(isinstance(f, str) for f in quality["flags"])
 
 
 def test_overview_png(run_result):

@@ -10,6 +10,7 @@ Examples::
     hkpd-eval runs/a/last.pt --poses poses.npz --no-synthetic --multi-view-shape 100  # 5 photos
     hkpd-eval model.pt --poses poses.npz --shape --evidence --coco coco_mini --out run/report.md
     hkpd-eval model.pt --poses poses.npz --no-synthetic --extremities 100 --out run/report.md
+    hkpd-eval model.pt --no-synthetic --coco coco_mini --coco-split val2017 --quality  # score
 
 With ``--shape`` (one checkpoint, ``--out`` required) it also scores how well the shape is read
 (``docs/shape.md``): on the synthetic test set fed detector-like keypoints and masks, R²
@@ -189,6 +190,13 @@ def _add_photo_arguments(parser: argparse.ArgumentParser) -> None:
         help="with --coco: also measure BlazePose's person mask against the COCO masks (IoU, "
         "where it errs, edge offsets; each split apart; docs/shape.md)",
     )
+    parser.add_argument(
+        "--quality",
+        action="store_true",
+        help="with --coco: also score the posteriors' quality score against their error (AUROC, "
+        "share off among readings scored >= 0.5, reliability table), people read through the "
+        "annotated boxes and through the detector's own (docs/prediction.md, 'Quality score')",
+    )
 
 
 def _add_shape_arguments(parser: argparse.ArgumentParser) -> None:
@@ -260,6 +268,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--coco-turns turns the --coco photos: give --coco too")
         if arguments.mask_errors and arguments.coco is None:
             raise ValueError("--mask-errors compares with the --coco masks: give --coco too")
+        if arguments.quality and arguments.coco is None:
+            raise ValueError("--quality scores the --coco people: give --coco too")
         if arguments.coco is not None and not arguments.coco.is_dir():
             raise FileNotFoundError(f"COCO folder {arguments.coco} does not exist")
         for name in ("count", "samples"):
@@ -568,6 +578,8 @@ def _photo_report(arguments: argparse.Namespace, device: torch.device) -> list[s
         report.append(_detector_error_table(load_coco_people(arguments.coco, 6), arguments))
     if arguments.mask_errors:
         report.append(_mask_error_report(arguments))
+    if arguments.quality:
+        report.append(_quality_report(arguments, device))
     columns = list(next(iter(rows.values())))
     report.append(
         f"### Real photos: {arguments.coco} ({len(people)} people with >= 12 visible "
@@ -580,6 +592,20 @@ def _photo_report(arguments: argparse.Namespace, device: torch.device) -> list[s
             + markdown_table(occlusion_rows, list(next(iter(occlusion_rows.values()))))
         )
     return report
+
+
+def _quality_report(arguments: argparse.Namespace, device: torch.device) -> str:
+    """The quality score against the error on the --coco people, per checkpoint
+    (:func:`hkpd.evaluation.quality_data.coco_quality_report`)."""
+    from hkpd.evaluation.quality_data import coco_quality_report
+    from hkpd.prediction.predictor import Predictor
+
+    parts = []
+    for checkpoint in arguments.checkpoints:
+        predictor = Predictor.from_pretrained(checkpoint, device=str(device))
+        parts.append(coco_quality_report(predictor, arguments.coco, arguments.coco_split))
+        predictor.close()
+    return "\n\n".join(parts)
 
 
 def _occlusion_report(arguments: argparse.Namespace, device: torch.device) -> str:

@@ -19,11 +19,13 @@ it writes into ``DIR/<image stem>/``:
 - ``samples/sample_000.<fmt>`` ...: ``--samples`` bodies drawn from the posterior;
 - ``mode_uncertainty.<fmt>``: the mode with per-vertex uncertainty as vertex colours;
 - ``prediction.npz`` (with ``npz`` in ``--format``): distribution parameters and all vertices;
-- ``summary.json``: image, detected person, crop, keypoints, uncertainty, the sex's
+- ``summary.json``: image, detected person, crop, keypoints, uncertainty, the reading's
+  ``"quality": {"score": s, "flags": [...]}`` (:mod:`hkpd.prediction.quality`), the sex's
   probabilities, the measurements with stds and what was stated
   (:mod:`hkpd.prediction.exports.body_summary`), files, timings;
 - ``overview.png``: photo with keypoints and skeletons, the outlines of the person mask and of
-  the mode's silhouette, uncertainty renders and colour bar;
+  the mode's silhouette, uncertainty renders and colour bar, and a warning line when the
+  quality score is low or a quality flag is set;
 - ``person_mask.png``: BlazePose's segmentation of the person, 8-bit grayscale in original
   photo pixels (255 × the probability that the pixel shows the person).
 
@@ -459,6 +461,7 @@ def _write_overview(
         caption=captions[0],
         outlines=outlines,
         body_caption=captions[1],
+        warning=posterior.quality.warning(),
     )
     Image.fromarray(overview).save(path)
     return path
@@ -490,6 +493,7 @@ def _photo_summary(
             "--bbox x0 y0 x1 y1 to pick another",
         },
         "posterior": _posterior_summary(posterior, evidence, silhouette),
+        "quality": posterior.quality.as_dict(),
         "crop": {
             "centre": crop.centre,
             "side": crop.side,

@@ -27,6 +27,7 @@ from hkpd.camera_conventions import ndc_to_pixels, weak_perspective_project
 from hkpd.distributions import BodyDistribution, KinematicMatrixFisher
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
 from hkpd.prediction.posterior_summaries import part_uncertainty, posterior_log_prob
+from hkpd.prediction.quality import ReadingQuality, reading_quality
 from hkpd.prediction.sex_latent import gaussian_measurements
 from hkpd.uncertainty import vertex_uncertainty
 
@@ -270,6 +271,14 @@ class BodyPosterior:
         if self.evidence_fit is None or self.conditioned:
             return None
         return self.evidence_fit.reason or "the keypoint fit failed"
+
+    @functools.cached_property
+    def quality(self) -> ReadingQuality:
+        """How far to trust this reading (:mod:`hkpd.prediction.quality`): ``score`` in [0, 1]
+        (calibrated: among readings scored ``s``, about ``s`` are not off) and ``flags``
+        (short names of what looks wrong). Computed once, from what the posterior already
+        holds (no fit is run again)."""
+        return reading_quality(self)
 
     @functools.cached_property
     def pose_distribution(self) -> KinematicMatrixFisher:

@@ -46,7 +46,8 @@ def source_text(posterior: BodyPosterior) -> str:
     """The status line for a posterior: which distribution is shown, why when the evidence fit
     fell back, whether the network read a copy of the crop turned upright or mirrored, and
     the drawn body's sex (with its probability, or "stated"), height and mass
-    (:func:`hkpd.explorer.body_text.body_sentence`; only for a posterior with sexes).
+    (:func:`hkpd.explorer.body_text.body_sentence`; only for a posterior with sexes), and the
+    reading's quality (:func:`quality_text`).
 
     A custom provider's posterior may lack the evidence attributes: it then reads as the
     network alone."""
@@ -70,4 +71,16 @@ def source_text(posterior: BodyPosterior) -> str:
     body = body_sentence(posterior)
     if body:
         text += f" {body}"
-    return f"*{text}*"
+    return f"*{text}*{quality_text(posterior)}"
+
+
+def quality_text(posterior: BodyPosterior) -> str:
+    """The reading's quality (:mod:`hkpd.prediction.quality`) for the status line: a bold
+    warning with its flags when the score is low or a flag is set, else the score; "" for a
+    custom provider's posterior without one."""
+    quality = getattr(posterior, "quality", None)
+    if quality is None:
+        return ""
+    if quality.low:
+        return f" **⚠ Check this reading: {quality.warning()}.**"
+    return f" *Quality {quality.score:.2f}.*"

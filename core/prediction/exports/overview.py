@@ -41,6 +41,7 @@ CONFIDENT = 0.5
 
 BACKGROUND = (246, 246, 244)
 TEXT = (30, 30, 30)
+WARNING_COLOUR = (200, 30, 20)
 MODE_COLOUR = (235, 60, 40)
 SAMPLE_COLOUR = (255, 170, 40)
 SAMPLE_ALPHA = 120
@@ -363,6 +364,7 @@ def make_overview(
     caption: str = "",
     outlines: Outlines | None = None,
     body_caption: str = "",
+    warning: str = "",
 ) -> np.ndarray:
     """The whole overview (see the module docstring), ``(H, W, 3)`` uint8 RGB.
 
@@ -379,25 +381,21 @@ def make_overview(
         body_caption: a line about the drawn body (its sex and measurements,
             :func:`hkpd.prediction.exports.body_summary.body_caption`), shown in the footer
             under the mode's renders, above ``caption`` (empty: the footer keeps one line).
+        warning: a line in :data:`WARNING_COLOUR` under the others (the reading's quality
+            warning, :meth:`hkpd.prediction.quality.ReadingQuality.warning`; empty: none).
     """
     values = np.asarray(uncertainty, dtype=np.float64)
     skeletons = draw_skeletons(
-        photo,
-        crop,
-        keypoints,
-        confidences,
-        mode_keypoints2d,
-        sample_keypoints2d,
-        height,
+        photo, crop, keypoints, confidences, mode_keypoints2d, sample_keypoints2d, height,
         outlines,
-    )
+    )  # fmt: skip
     front, side, masks = render_uncertainty_views(mode_vertices, faces, values, scale, height)
     front = _trim_columns(front, masks[0], int(height * 0.42), height // 20)
     side = _trim_columns(side, masks[1], int(height * 0.42), height // 20)
     bar = draw_colour_bar(scale, height)
     gap = max(8, height // 40)
     title_height, row_height = max(28, height // 16), max(26, height // 18)
-    footer_height = row_height * (2 if body_caption else 1)
+    footer_height = row_height * (1 + bool(body_caption) + bool(warning))
     panels = [skeletons, front, side, bar]
     width = sum(panel.shape[1] for panel in panels) + gap * (len(panels) + 1)
     canvas = Image.new("RGB", (width, height + title_height + footer_height), BACKGROUND)
@@ -422,9 +420,9 @@ def make_overview(
     mean_cm, max_cm = 100 * float(values.mean()), 100 * float(values.max())
     stats = f"vertex uncertainty: mean {mean_cm:.1f} cm, max {max_cm:.1f} cm"
     text = f"{stats}   {caption}".strip()
-    text_x = skeletons.shape[1] + 2 * gap
-    if body_caption:
-        draw.text((text_x, legend_y), body_caption, fill=TEXT, font=font, anchor="lm")
+    lines = [(body_caption, TEXT, font), (text, TEXT, small), (warning, WARNING_COLOUR, font)]
+    for line, colour, face in (line for line in lines if line[0]):
+        draw.text((skeletons.shape[1] + 2 * gap, legend_y), line, fill=colour, font=face,
+                  anchor="lm")  # fmt: skip
         legend_y += row_height
-    draw.text((text_x, legend_y), text, fill=TEXT, font=small, anchor="lm")
     return np.asarray(canvas)

@@ -1,0 +1,351 @@
+"""How far to trust one reading: a calibrated score in [0, 1] and named flags.
+
+:func:`reading_quality` reads a :class:`~hkpd.prediction.posterior.BodyPosterior` and what it
+already carries (the detection, the crop, the keypoint fit's report, the person mask, the
+network's reading the fit started from) and returns a :class:`ReadingQuality`; nothing is
+fitted again (its cost is one mode mesh, a few milliseconds). ``BodyPosterior.quality`` is this,
+computed once per posterior.
+
+**The score** is the probability that the reading is *not off*, where off means the mode's 2D
+keypoints lie on average more than 0.2 of the person's size from where they truly are (the
+project's measure on coco_mini and synthetic photos: ``docs/prediction.md``, "Quality score").
+It is a logistic rule on a few standardised signals (:data:`SIGNAL_NAMES`) whose weights
+(:data:`QUALITY_WEIGHTS`) were chosen by ``docs/experiments/quality_fit.py`` on coco_mini
+train2017 and synthetic photos with hard cases only; calibrated means that among readings scored
+about ``s``, about ``s`` are not off.
+
+**The flags** (:data:`FLAG_MEANINGS`) name what is wrong in words, each by a fixed threshold
+on one signal; they do not enter the score (the signals do).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+
+from hkpd.coco_keypoints import COCO17_NAMES
+from hkpd.proxy import CONFIDENCE_THRESHOLD, CROP_MARGIN
+
+if TYPE_CHECKING:
+    from hkpd.prediction.posterior import BodyPosterior
+
+SIGNAL_NAMES: tuple[str, ...] = (
+    "confident_share",
+    "mean_confidence",
+    "log2_person_px",
+    "outside_share",
+    "misfit",
+    "downweighted_share",
+    "prior_shift",
+    "mask_outside",
+    "face_minus_shoulders",
+    "detector_score",
+)
+"""The signals the score reads, in :attr:`ReadingQuality.signals`' order:
+
+- ``confident_share``: share of the 17 keypoints the detector scores >= 0.6;
+- ``mean_confidence``: the detector's mean confidence over the 17;
+- ``log2_person_px``: log2 of the person's size in photo pixels (the crop side / 1.2, the
+  keypoints' longer extent);
+- ``outside_share``: share of the 17 detected keypoints placed outside the photo;
+- ``misfit``: mean distance of the mode's reprojected keypoints from the evidence keypoints,
+  in units of the person's size (1 when there is no evidence);
+- ``downweighted_share``: share of the evidence keypoints the fit's robust weights treat as
+  outliers (weight < 0.5);
+- ``prior_shift``: mean angle (radians) between the network's most likely joint rotations (the
+  reading the fit started from) and the posterior's, the global rotation included;
+- ``mask_outside``: share of the mode's reprojected keypoints inside the crop where the
+  detector's person mask says background (probability < 0.2; 0 without a mask);
+- ``face_minus_shoulders``: the nose's confidence logit minus the shoulders' mean (low when the
+  face is weakly seen against the body: a back view, ``docs/evidence.md``), clipped to ±10;
+- ``detector_score``: BlazePose's person-detector score (0 when it found nobody in the given
+  box and the landmark model read the box itself).
+
+A fallback to the network's posterior is a flag, not a signal: none of the fitting readings fell
+back, so the data could not weigh it.
+"""
+
+QUALITY_MEAN = (0.8, 0.8, 8.0, 0.05, 0.05, 0.1, 0.2, 0.1, 0.0, 0.8)
+"""Each signal's mean over the fitting data (:data:`SIGNAL_NAMES` order)."""
+
+QUALITY_SPREAD = (0.2, 0.15, 1.0, 0.1, 0.05, 0.1, 0.1, 0.1, 2.0, 0.2)
+"""Each signal's standard deviation over the fitting data."""
+
+QUALITY_WEIGHTS = (2.0, 0.5, 0.5, 0.5, -0.5, -0.3, -0.3, -0.3, -0.5, 0.2, 0.2)
+"""The logistic rule's weights: the bias, then one per standardised signal (a placeholder until
+``docs/experiments/quality_fit.py`` writes the fitted ones)."""
+
+SMALL_PERSON_PX = 96.0
+"""``small_person``: the person spans fewer photo pixels than this (the network reads 256)."""
+
+FEW_CONFIDENT = 10
+"""``few_confident_keypoints``: fewer of the 17 keypoints than this are confident (>= 0.6)."""
+
+EDGE_FRACTION = 0.01
+"""``cut_off_by_edge``: the detected person's box comes within this share of the photo's larger
+side of its edge, or a detected keypoint lies outside the photo."""
+
+FAR_FROM_NETWORK_RADIANS = 0.35
+"""``fit_far_from_network``: the fit moved the joints on average by more than this (20°)."""
+
+MISFIT_FRACTION = 0.1
+"""``keypoints_not_fitted``: the mode misses the evidence keypoints by more than this share of
+the person's size on average."""
+
+MASK_OUTSIDE_SHARE = 0.25
+"""``body_outside_mask``: more than this share of the mode's keypoints lie on the person mask's
+background."""
+
+FACE_BEHIND_SHOULDERS_LOGIT = -1.5
+"""``facing_ambiguous``: the nose's confidence logit lies this far below the shoulders' mean
+(``docs/evidence.md``: back views' median -2.0, front views' 0.4 on val2017), or the nose and
+eyes are not all confident."""
+
+MASK_BACKGROUND = 0.2
+"""A crop pixel whose person-mask probability is below this counts as background."""
+
+FLAG_MEANINGS: dict[str, str] = {
+    "few_confident_keypoints": f"fewer than {FEW_CONFIDENT} of 17 keypoints are confident",
+    "small_person": f"the person spans fewer than {SMALL_PERSON_PX:.0f} photo pixels",
+    "cut_off_by_edge": "the person reaches the photo's edge or keypoints lie outside it",
+    "fit_far_from_network": "the keypoint fit moved the joints far from the network's reading",
+    "keypoints_not_fitted": "the most likely body misses the detected keypoints",
+    "body_outside_mask": "the most likely body lies partly outside the detector's person mask",
+    "fallback": "the keypoint fit failed: the network's own posterior is returned",
+    "turned_copy": "read from a turned copy (upright copy, half-turned start or turned_around)",
+    "facing_ambiguous": "the face is weakly seen: the person may face the other way "
+    "(try turned_around())",
+}
+"""Every flag :func:`reading_quality` may set, and what it means."""
+
+LOW_SCORE = 0.5
+"""Below this score a reading is shown with a warning (the overview, the explorer)."""
+
+
+@dataclass(frozen=True)
+class ReadingQuality:
+    """How far to trust one reading (module docstring).
+
+    Attributes:
+        score: in [0, 1], the calibrated probability that the reading is not off (its mode's
+            keypoints within 0.2 of the person's size of the truth on average).
+        flags: short names of what looks wrong, :data:`FLAG_MEANINGS` order (empty: nothing).
+        signals: ``{name: value}`` of :data:`SIGNAL_NAMES`, what the score read.
+    """
+
+    score: float
+    flags: tuple[str, ...]
+    signals: dict[str, float]
+
+    def __repr__(self) -> str:
+        return f"ReadingQuality(score={self.score:.2f}, flags={self.flags})"
+
+    @property
+    def low(self) -> bool:
+        """The score is below :data:`LOW_SCORE` or a flag is set: show a warning."""
+        return self.score < LOW_SCORE or bool(self.flags)
+
+    def warning(self) -> str:
+        """One line for a picture or a status bar: the score and the flags ("" when
+        :attr:`low` is False)."""
+        if not self.low:
+            return ""
+        named = ", ".join(self.flags) if self.flags else "no single cause"
+        return f"quality {self.score:.2f}: {named}"
+
+    def as_dict(self) -> dict[str, object]:
+        """``{"score": s, "flags": [...]}`` as summary.json writes it."""
+        return {"score": round(self.score, 4), "flags": list(self.flags)}
+
+
+def quality_score(signals: np.ndarray) -> np.ndarray:
+    """``(..., S)`` signals (:data:`SIGNAL_NAMES` order) -> ``(...)`` scores in [0, 1]."""
+    values = np.asarray(signals, dtype=np.float64)
+    standard = (values - np.asarray(QUALITY_MEAN)) / np.asarray(QUALITY_SPREAD)
+    weights = np.asarray(QUALITY_WEIGHTS)
+    logit = weights[0] + standard @ weights[1:]
+    return 1.0 / (1.0 + np.exp(-np.clip(logit, -30.0, 30.0)))
+
+
+def reading_quality(posterior: BodyPosterior) -> ReadingQuality:
+    """The quality record of ``posterior`` (module docstring)."""
+    signals = reading_signals(posterior)
+    score = float(quality_score(np.array([signals[name] for name in SIGNAL_NAMES])))
+    return ReadingQuality(score, reading_flags(posterior, signals), signals)
+
+
+def reading_signals(posterior: BodyPosterior) -> dict[str, float]:
+    """``{name: value}`` of :data:`SIGNAL_NAMES` for ``posterior``."""
+    confidences = _detector_confidences(posterior)
+    keypoints = _detector_keypoints(posterior)
+    person_px = float(posterior.crop.side) / CROP_MARGIN
+    mode_points = posterior.mode().keypoints2d[0].detach().cpu().double().numpy()  # (17, 2)
+    return {
+        "confident_share": float(np.mean(confidences >= CONFIDENCE_THRESHOLD)),
+        "mean_confidence": float(confidences.mean()),
+        "log2_person_px": math.log2(max(person_px, 1.0)),
+        "outside_share": _outside_share(posterior, keypoints),
+        "misfit": _misfit(posterior, mode_points, keypoints, person_px),
+        "downweighted_share": _downweighted_share(posterior),
+        "prior_shift": _prior_shift(posterior),
+        "mask_outside": _mask_outside(posterior, mode_points),
+        "face_minus_shoulders": face_minus_shoulders(confidences),
+        "detector_score": _detector_score(posterior),
+    }
+
+
+def reading_flags(posterior: BodyPosterior, signals: dict[str, float]) -> tuple[str, ...]:
+    """The flags of ``posterior`` whose thresholds ``signals`` pass, :data:`FLAG_MEANINGS`
+    order."""
+    confidences = _detector_confidences(posterior)
+    fit = posterior.evidence_fit
+    raised = {
+        "few_confident_keypoints": int((confidences >= CONFIDENCE_THRESHOLD).sum()) < FEW_CONFIDENT,
+        "small_person": 2.0 ** signals["log2_person_px"] < SMALL_PERSON_PX,
+        "cut_off_by_edge": signals["outside_share"] > 0 or _box_at_edge(posterior),
+        "fit_far_from_network": signals["prior_shift"] > FAR_FROM_NETWORK_RADIANS,
+        "keypoints_not_fitted": signals["misfit"] > MISFIT_FRACTION,
+        "body_outside_mask": signals["mask_outside"] > MASK_OUTSIDE_SHARE,
+        "fallback": posterior.fallback_reason is not None,
+        "turned_copy": bool(
+            posterior.turned
+            or (fit is not None and posterior.conditioned and (fit.turned or fit.start == 1))
+        ),
+        "facing_ambiguous": facing_ambiguous(confidences),
+    }
+    return tuple(name for name in FLAG_MEANINGS if raised[name])
+
+
+def face_minus_shoulders(confidences: np.ndarray) -> float:
+    """``(17,)`` detector confidences -> the nose's logit minus the shoulders' mean logit,
+    clipped to ±10."""
+    names = list(COCO17_NAMES)
+    clipped = np.clip(np.asarray(confidences, dtype=np.float64), 1e-6, 1 - 1e-6)
+    logits = np.log(clipped / (1 - clipped))
+    shoulders = [names.index("left_shoulder"), names.index("right_shoulder")]
+    return float(np.clip(logits[names.index("nose")] - logits[shoulders].mean(), -10.0, 10.0))
+
+
+def facing_ambiguous(confidences: np.ndarray) -> bool:
+    """``(17,)`` detector confidences -> the face is weakly seen against the shoulders
+    (:data:`FACE_BEHIND_SHOULDERS_LOGIT`) or the nose and eyes are not all confident."""
+    names = list(COCO17_NAMES)
+    face = [names.index(name) for name in ("nose", "left_eye", "right_eye")]
+    behind = face_minus_shoulders(confidences) < FACE_BEHIND_SHOULDERS_LOGIT
+    weak = (np.asarray(confidences, dtype=np.float64)[face] < CONFIDENCE_THRESHOLD).any()
+    return bool(behind or weak)
+
+
+def _detector_score(posterior: BodyPosterior) -> float:
+    """BlazePose's person-detector score; 0 when it found nobody in the box; 1 when unknown
+    (no photo)."""
+    prepared = posterior.network_input
+    if prepared is None:
+        return 1.0
+    score = getattr(prepared.detection, "detector_score", 1.0)
+    return 0.0 if score is None else float(score)
+
+
+def _detector_confidences(posterior: BodyPosterior) -> np.ndarray:
+    """``(17,)`` the detector's own confidences (before the evidence rule zeroed any)."""
+    if posterior.network_input is not None:
+        return np.asarray(posterior.network_input.detection.confidences, dtype=np.float64)
+    return posterior.confidences.detach().cpu().double().numpy()
+
+
+def _detector_keypoints(posterior: BodyPosterior) -> np.ndarray:
+    """``(17, 2)`` detected keypoints, photo pixels."""
+    return posterior.keypoints.detach().cpu().double().numpy()
+
+
+def _image_size(posterior: BodyPosterior) -> tuple[int, int] | None:
+    prepared = posterior.network_input
+    return None if prepared is None else tuple(prepared.detection.image_size)
+
+
+def _outside_share(posterior: BodyPosterior, keypoints: np.ndarray) -> float:
+    """Share of the 17 detected keypoints outside the photo (0 when the photo is unknown)."""
+    size = _image_size(posterior)
+    if size is None:
+        return 0.0
+    width, height = size
+    inside = (keypoints >= -0.5).all(-1) & (keypoints[:, 0] <= width - 0.5)
+    inside &= keypoints[:, 1] <= height - 0.5
+    return float(1.0 - inside.mean())
+
+
+def _box_at_edge(posterior: BodyPosterior) -> bool:
+    """The detected person's box comes within :data:`EDGE_FRACTION` of the photo's edge."""
+    size = _image_size(posterior)
+    if size is None:
+        return False
+    width, height = size
+    x0, y0, x1, y1 = np.asarray(posterior.network_input.detection.person_box, dtype=np.float64)
+    margin = EDGE_FRACTION * max(width, height)
+    return bool(min(x0, y0, width - x1, height - y1) < margin)
+
+
+def _misfit(
+    posterior: BodyPosterior, mode_points: np.ndarray, keypoints: np.ndarray, person_px: float
+) -> float:
+    """Mean distance of the mode's keypoints from the evidence keypoints / the person's size."""
+    evidence = _evidence(posterior)
+    if not evidence.any():
+        return 1.0
+    distance = np.linalg.norm(mode_points[evidence] - keypoints[evidence], axis=-1)
+    return float(distance.mean() / max(person_px, 1.0))
+
+
+def _evidence(posterior: BodyPosterior) -> np.ndarray:
+    if posterior.evidence is None:
+        return _detector_confidences(posterior) >= CONFIDENCE_THRESHOLD
+    return posterior.evidence.detach().cpu().numpy().astype(bool)
+
+
+def _downweighted_share(posterior: BodyPosterior) -> float:
+    """Share of the evidence keypoints with robust weight < 0.5 (0 without a fit)."""
+    fit, evidence = posterior.evidence_fit, _evidence(posterior)
+    if fit is None or fit.keypoint_weights is None or not evidence.any():
+        return 0.0
+    weights = fit.keypoint_weights.detach().cpu().numpy()[evidence]
+    return float(np.mean(weights < 0.5))
+
+
+def _prior_shift(posterior: BodyPosterior) -> float:
+    """Mean rotation angle (radians) between the network reading's modal joint rotations and
+    global rotation and the posterior's (0 for the network's own posterior)."""
+    if posterior.prior is None or not posterior.conditioned:
+        return 0.0
+    before = torch.cat(
+        (posterior.prior.pose_distribution.mode[0], posterior.prior.global_orient[None])
+    )
+    after = torch.cat((posterior.pose_distribution.mode[0], posterior.global_orient[None]))
+    relative = before.double().transpose(-1, -2) @ after.double()
+    cosine = ((relative.diagonal(dim1=-2, dim2=-1).sum(-1) - 1) / 2).clamp(-1.0, 1.0)
+    return float(torch.arccos(cosine).mean())
+
+
+def _mask_outside(posterior: BodyPosterior, mode_points: np.ndarray) -> float:
+    """Share of the mode's keypoints inside the crop that land on the person mask's known
+    background (0 without a mask or when none lands in the crop)."""
+    prepared = posterior.network_input
+    if prepared is None or prepared.person_mask is None:
+        return 0.0
+    mask = np.asarray(prepared.person_mask)
+    known = (
+        np.ones(mask.shape, bool)
+        if prepared.person_mask_known is None
+        else np.asarray(prepared.person_mask_known)
+    )
+    pixels = np.round(np.asarray(posterior.crop.image_to_crop(mode_points))).astype(np.int64)
+    size = mask.shape[0]
+    inside = ((pixels >= 0) & (pixels < size)).all(-1)
+    columns, rows = pixels[inside, 0], pixels[inside, 1]
+    counted = known[rows, columns]
+    if not counted.any():
+        return 0.0
+    return float(np.mean(mask[rows, columns][counted] < MASK_BACKGROUND))

@@ -1,0 +1,138 @@
+"""Choose the quality score's weights and measure them (issue 51; docs/prediction.md, "Quality
+score").
+
+1. ``collect``: read coco_mini people (through the annotated box grown by 15 % and through the
+   detector's own person boxes, :mod:`hkpd.evaluation.quality_data`) and synthetic photos with
+   hard cases (``--synthetic`` photos for fitting, seed 1; ``--held-out`` photos, seed 2), with
+   the shipped predictor; write every reading's signals and error to ``--cache`` (an ``.npz``).
+2. ``fit``: an L2-penalised logistic regression of "not off" on the standardised signals
+   (:data:`hkpd.prediction.quality.SIGNAL_NAMES`), fitted on coco_mini **train2017** and the
+   seed-1 synthetic readings only (each source weighted to the same total, so the few real
+   readings count as much as the many synthetic ones); prints the constants to paste into
+   ``core/prediction/quality.py`` and, for every source, the AUROC, the share off among readings
+   scored >= 0.5 and the reliability table (:mod:`hkpd.evaluation.quality_metrics`), with the
+   weights in the cache's own scores (the shipped ones) too.
+
+    python docs/experiments/quality_fit.py collect ../shared/data/coco_mini --cache q.npz
+    python docs/experiments/quality_fit.py fit --cache q.npz
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from hkpd.evaluation.quality_data import coco_readings, synthetic_readings
+from hkpd.evaluation.quality_metrics import OFF_FRACTION, auroc, quality_summary, quality_table
+from hkpd.prediction import Predictor
+from hkpd.prediction.quality import SIGNAL_NAMES, quality_score
+
+FIT_SOURCES = ("train2017/annotated", "train2017/detector", "synthetic")
+PENALTY = 1.0
+
+
+def collect(coco: Path, cache: Path, synthetic: int, held_out: int) -> None:
+    """Read everything (module docstring, step 1) and write ``cache``."""
+    torch.set_num_threads(1)
+    predictor = Predictor.from_pretrained(device="cpu")
+    readings = coco_readings(predictor, coco, "annotated")
+    readings += coco_readings(predictor, coco, "detector")
+    readings += synthetic_readings(predictor, synthetic, seed=1)
+    held = synthetic_readings(predictor, held_out, seed=2)
+    readings += [replace(reading, source="synthetic_held_out") for reading in held]
+    predictor.close()
+    np.savez(
+        cache,
+        source=np.array([r.source for r in readings]),
+        name=np.array([r.name for r in readings]),
+        signals=np.stack([r.signals for r in readings]),
+        error=np.array([r.error for r in readings]),
+        flags=np.array(["|".join(r.flags) for r in readings]),
+        signal_names=np.array(SIGNAL_NAMES),
+    )
+    print(f"{len(readings)} readings written to {cache}")
+
+
+def logistic(features: np.ndarray, good: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """Weights (bias first) of a weighted L2-penalised logistic regression, by Newton steps."""
+    design = np.c_[np.ones(len(features)), features]
+    weights = np.zeros(design.shape[1])
+    ridge = PENALTY * np.diag(np.r_[0.0, np.ones(design.shape[1] - 1)])
+    for _ in range(100):
+        p = 1 / (1 + np.exp(-design @ weights))
+        gradient = design.T @ (weight * (p - good)) + ridge @ weights
+        hessian = design.T @ (design * (weight * p * (1 - p))[:, None]) + ridge
+        step = np.linalg.solve(hessian, gradient)
+        weights -= step
+        if np.abs(step).max() < 1e-10:
+            break
+    return weights
+
+
+def fit(cache: Path) -> None:
+    """Fit on the fitting sources, print the constants and every source's table."""
+    data = np.load(cache)
+    source, signals, error = data["source"], data["signals"], data["error"]
+    chosen = np.isin(source, FIT_SOURCES)
+    mean = signals[chosen].mean(0)
+    spread = signals[chosen].std(0) + 1e-6
+    weight = np.zeros(len(source))
+    for name in FIT_SOURCES:
+        rows = source == name
+        weight[rows] = chosen.sum() / (len(FIT_SOURCES) * max(rows.sum(), 1))
+    standard = (signals - mean) / spread
+    weights = logistic(standard[chosen], (error[chosen] <= OFF_FRACTION).astype(float),
+                       weight[chosen])  # fmt: skip
+    print("QUALITY_MEAN = (" + ", ".join(f"{v:.4g}" for v in mean) + ")")
+    print("QUALITY_SPREAD = (" + ", ".join(f"{v:.4g}" for v in spread) + ")")
+    print("QUALITY_WEIGHTS = (" + ", ".join(f"{v:.4g}" for v in weights) + ")")
+    logits = weights[0] + standard @ weights[1:]
+    fitted = 1 / (1 + np.exp(-logits))
+    shipped = quality_score(signals)
+    print("\n| source | readings | off | AUROC (fitted) | off at >= 0.5 | AUROC (shipped) | "
+          "off at >= 0.5 (shipped) |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|")
+    for name in sorted(set(source.tolist())):
+        rows = source == name
+        now, before = (
+            quality_summary(fitted[rows], error[rows]),
+            quality_summary(shipped[rows], error[rows]),
+        )
+        print(f"| {name} | {int(now['readings'])} | {int(now['off'])} | {now['auroc']:.3f} | "
+              f"{now['off_share_at_0.5']:.3f} | {before['auroc']:.3f} | "
+              f"{before['off_share_at_0.5']:.3f} |")  # fmt: skip
+    for name in sorted(set(source.tolist())):
+        rows = source == name
+        print("\n" + quality_table(f"{name} (shipped weights)", shipped[rows], error[rows]))
+    print("\nSingle signals' AUROC (higher signal = better):")
+    for name in sorted(set(source.tolist())):
+        rows = source == name
+        off = error[rows] > OFF_FRACTION
+        cells = ", ".join(
+            f"{signal} {auroc(signals[rows, i], off):.2f}" for i, signal in enumerate(SIGNAL_NAMES)
+        )
+        print(f"- {name}: {cells}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("step", choices=("collect", "fit"))
+    parser.add_argument("coco", type=Path, nargs="?")
+    parser.add_argument("--cache", type=Path, required=True)
+    parser.add_argument("--synthetic", type=int, default=320)
+    parser.add_argument("--held-out", type=int, default=160)
+    args = parser.parse_args(argv)
+    if args.step == "collect":
+        if args.coco is None:
+            parser.error("collect needs the coco_mini folder")
+        collect(args.coco, args.cache, args.synthetic, args.held_out)
+    else:
+        fit(args.cache)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,182 @@
+"""The reading quality record (``hkpd.prediction.quality``) and its metrics."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+
+from hkpd.body import BodyModel
+from hkpd.camera_conventions import FRONTAL_GLOBAL_ORIENT
+from hkpd.coco_keypoints import COCO17_NAMES
+from hkpd.distributions import BodyDistribution
+from hkpd.evaluation.quality_metrics import (
+    auroc,
+    off_share_above,
+    quality_summary,
+    quality_table,
+    reliability_rows,
+)
+from hkpd.prediction.crop import CropTransform
+from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.quality import (
+    FLAG_MEANINGS,
+    QUALITY_WEIGHTS,
+    SIGNAL_NAMES,
+    ReadingQuality,
+    facing_ambiguous,
+    quality_score,
+)
+
+PHOTO = (1000, 1000)
+
+
+@pytest.fixture(scope="module")
+def body() -> BodyModel:
+    return BodyModel()
+
+
+def reading(
+    body: BodyModel,
+    side: float = 480.0,
+    confidences: np.ndarray | None = None,
+    box: tuple[float, float, float, float] | None = None,
+    shift: tuple[float, float] = (0.0, 0.0),
+) -> BodyPosterior:
+    """A network posterior of a standing body in a ``side``-pixel crop at the photo's centre,
+    its keypoints where the mode reprojects (moved by ``shift`` pixels), as a photo's reading
+    would carry them (a stand-in detection: confidences, the photo's size, the person's box)."""
+    F = 40.0 * torch.eye(3).expand(23, 3, 3).clone()
+    distribution = BodyDistribution(
+        F, torch.zeros(10), torch.full((10,), 0.3), FRONTAL_GLOBAL_ORIENT.clone(),
+        torch.tensor([0.9, 0.0, 0.0]),
+    )  # fmt: skip
+    crop = CropTransform((500.0, 500.0), side, 256)
+    confidences = np.full(17, 0.95) if confidences is None else np.asarray(confidences, float)
+    posterior = BodyPosterior(distribution, crop, torch.zeros(17, 2), torch.ones(17), body)
+    keypoints = posterior.mode().keypoints2d[0] + torch.tensor(shift, dtype=torch.float32)
+    points = keypoints.double().numpy()
+    if box is None:
+        box = (*points.min(0), *points.max(0))
+    detection = SimpleNamespace(
+        confidences=confidences, image_size=PHOTO, person_box=np.asarray(box, np.float64)
+    )
+    prepared = SimpleNamespace(detection=detection, person_mask=None, person_mask_known=None)
+    return replace(
+        posterior,
+        keypoints=keypoints,
+        confidences=torch.as_tensor(confidences, dtype=torch.float32),
+        network_input=prepared,
+    )
+
+
+def test_a_clear_large_person_has_no_flags_and_a_score_in_the_unit_interval(body) -> None:
+    quality = reading(body).quality
+    assert isinstance(quality, ReadingQuality)
+    assert 0.0 <= quality.score <= 1.0
+    assert quality.flags == ()
+    assert set(quality.signals) == set(SIGNAL_NAMES)
+    assert quality.signals["misfit"] < 1e-3  # the keypoints are where the mode reprojects
+    assert quality.as_dict() == {"score": round(quality.score, 4), "flags": []}
+
+
+def test_quality_is_computed_once_per_posterior(body) -> None:
+    posterior = reading(body)
+    assert posterior.quality is posterior.quality
+
+
+def test_a_small_person_is_flagged_and_scored_lower(body) -> None:
+    large, small = reading(body).quality, reading(body, side=80.0).quality
+    assert "small_person" in small.flags and "small_person" not in large.flags
+    assert small.score < large.score
+
+
+def test_a_box_at_the_photo_edge_is_flagged(body) -> None:
+    quality = reading(body, box=(0.0, 300.0, 600.0, 700.0)).quality
+    assert "cut_off_by_edge" in quality.flags
+
+
+def test_keypoints_outside_the_photo_are_flagged_and_scored_lower(body) -> None:
+    inside = reading(body).quality
+    outside = reading(body, shift=(0.0, 700.0)).quality  # the legs below the photo's bottom
+    assert outside.signals["outside_share"] > 0.2
+    assert "cut_off_by_edge" in outside.flags
+    assert outside.score < inside.score
+
+
+def test_low_confidences_are_flagged_and_the_score_rises_with_confidence(body) -> None:
+    scores = []
+    for level in (0.1, 0.3, 0.5, 0.7, 0.9):
+        confidences = np.full(17, 0.95)
+        confidences[5:] = level  # everything below the face
+        quality = reading(body, confidences=confidences).quality
+        scores.append(quality.score)
+        assert ("few_confident_keypoints" in quality.flags) == (level < 0.6)
+    assert np.all(np.diff(scores) >= 0)
+    assert scores[-1] > scores[0]
+
+
+def test_the_score_falls_as_the_mode_misses_the_keypoints(body) -> None:
+    scores = [reading(body, shift=(dx, 0.0)).quality.score for dx in (0.0, 40.0, 120.0)]
+    assert scores[0] >= scores[1] >= scores[2] and scores[0] > scores[2]
+    missed = reading(body, shift=(120.0, 0.0)).quality
+    assert "keypoints_not_fitted" in missed.flags
+
+
+def test_a_weak_face_against_the_shoulders_is_facing_ambiguous() -> None:
+    names = list(COCO17_NAMES)
+    confidences = np.full(17, 0.99)
+    assert not facing_ambiguous(confidences)
+    confidences[names.index("nose")] = 0.7  # confident, but far below the shoulders' logits
+    assert facing_ambiguous(confidences)
+    confidences = np.full(17, 0.9)
+    confidences[names.index("left_eye")] = 0.3
+    assert facing_ambiguous(confidences)
+
+
+def test_the_weights_point_the_obvious_way() -> None:
+    weights = dict(zip(SIGNAL_NAMES, QUALITY_WEIGHTS[1:], strict=True))
+    for better in ("confident_share", "mean_confidence", "log2_person_px"):
+        assert weights[better] >= 0, better
+    for worse in ("outside_share", "misfit", "downweighted_share"):
+        assert weights[worse] <= 0, worse
+
+
+def test_quality_score_is_a_probability_for_any_signals() -> None:
+    rng = np.random.default_rng(0)
+    signals = rng.normal(0, 100, size=(200, len(SIGNAL_NAMES)))
+    scores = quality_score(signals)
+    assert scores.shape == (200,) and ((scores >= 0) & (scores <= 1)).all()
+
+
+def test_the_flags_are_documented() -> None:
+    assert all(name.isidentifier() and len(name) <= 24 for name in FLAG_MEANINGS)
+    warning = ReadingQuality(0.2, ("small_person",), {}).warning()
+    assert "0.20" in warning and "small_person" in warning
+    assert ReadingQuality(0.9, (), {}).warning() == ""
+
+
+def test_auroc_counts_ranks_and_ties() -> None:
+    off = np.array([True, True, False, False])
+    assert auroc(np.array([0.1, 0.2, 0.8, 0.9]), off) == 1.0
+    assert auroc(np.array([0.9, 0.8, 0.2, 0.1]), off) == 0.0
+    assert auroc(np.full(4, 0.5), off) == 0.5
+    assert np.isnan(auroc(np.array([0.1, 0.2]), np.array([False, False])))
+    with pytest.raises(ValueError, match="same shape"):
+        auroc(np.zeros(3), np.zeros(4, bool))
+
+
+def test_reliability_rows_and_the_off_share_above_the_threshold() -> None:
+    score = np.array([0.1, 0.15, 0.55, 0.95, 1.0])
+    off = np.array([True, False, True, False, False])
+    rows = reliability_rows(score, off)
+    assert [row["count"] for row in rows] == [2, 1, 2]
+    assert rows[0]["not_off"] == 0.5 and rows[-1]["not_off"] == 1.0
+    assert off_share_above(score, off) == pytest.approx(1 / 3)
+    summary = quality_summary(score, np.where(off, 0.5, 0.05))
+    assert summary["off"] == 2 and summary["readings"] == 5
+    table = quality_table("toy", score, np.where(off, 0.5, 0.05))
+    assert "| 0.9-1.0 | 2 |" in table and "AUROC" in table
