@@ -437,7 +437,8 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         rescaled = scene.heatmap != scale
         if rescaled:
             scene.heatmap = scale
-            scene.show_legend()
+            if scene.legend_scale is not None:  # a body is drawn: its colour bar follows
+                scene.show_legend()
             self.key.show(colouring=scale.kind)
             if scene.placement is not None:  # the column titles follow the colouring
                 scene.show_titles(scene.titles_top)

@@ -153,7 +153,8 @@ class ExplorerScene:
                     font_screen_scale=1.15,
                     anchor="bottom-center",
                 )
-            self.show_legend()
+            if self.legend_scale is not None:  # not while no body is drawn ("No person")
+                self.show_legend()
 
     @contextlib.contextmanager
     def static_titles(self) -> Iterator[None]:

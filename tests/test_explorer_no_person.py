@@ -16,6 +16,7 @@ from test_explorer_app import RecordingClient, TwoPeopleProvider
 from test_explorer_double import OcclusionAwareDouble
 
 from hkpd.explorer.app import ExplorerApp, weak_keypoints_warning
+from hkpd.explorer.colour_map import COLOURINGS
 from hkpd.explorer.panels.photo import PICKED_CHOICE
 from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
 
@@ -95,6 +96,11 @@ def test_an_upload_without_a_person_is_loaded_and_drawn():
         placement = explorer.scene.placement
         assert (placement.width_px, placement.height_px) == (320, 200)
         assert explorer.view is None and "/body/mode" not in nodes(explorer)
+        # No colour bar nor arrows line of the last photo's body (placing the new photo drew
+        # the titles, which drew the colour bar again), nor after a new colouring.
+        assert not {"/legend", "/joint_axes_label"} & nodes(explorer)
+        explorer.panels.samples.colouring.value = COLOURINGS["linear"]
+        assert explorer.wait_idle(30) and "/legend" not in nodes(explorer)
         titles = [title for title, _ in client.notifications]
         assert titles == ["Photo loaded", "No person found"]
         assert "drag a box" in client.notifications[1][1] and "--bbox" not in str(titles)
