@@ -28,8 +28,14 @@ and to it holding the first complete view (photo, mode body, heatmap). A plain w
 polls the port from the moment the process starts; the server sends a new client every scene
 node it holds, so the client sees a node as soon as the server has it (no browser involved).
 
+With ``--paired SETTING`` it runs two apps in one process on the same provider, one plain and
+one comparing against SETTING, and alternates every slider move and occluder edit between them,
+so that both see the same load (the shared VM's load moves by a factor of two within minutes);
+it prints both medians and their ratio.
+
 Usage: python benchmarks/bench_explorer.py [--threads 2] [--repeats 15] [--real] [--uploads 20]
        python benchmarks/bench_explorer.py --startup 5 [--photo PATH]
+       python benchmarks/bench_explorer.py --real --paired network [--repeats 15]
 """
 
 from __future__ import annotations
@@ -136,7 +142,14 @@ def main() -> None:
         help="with the compare columns on (network, no-occluders, default-concentrations, or a "
         "checkpoint path)",
     )  # fmt: skip
+    parser.add_argument(
+        "--paired", default=None, metavar="SETTING",
+        help="plain and compare SETTING alternated in one process (see the module docstring)",
+    )  # fmt: skip
     args = parser.parse_args()
+    if args.paired is not None:
+        report_paired(args.paired, args.repeats, args.threads, args.real)
+        return
     if args.startup:
         report_startup(args.startup, args.photo, args.threads)
         return
@@ -291,6 +304,92 @@ def main() -> None:
         print("|---|---:|---|")
         for name, kilobytes, message in batch.messages:
             print(f"| {name} | {kilobytes:.0f} | {message} |")
+
+
+def track_pushes(app: ExplorerApp) -> None:
+    """Keep in ``app.pushed_at`` when the worker last began pushing a view (A's; B follows)."""
+    show_view = app.scene.show_view
+
+    def tracked(*args, **kwargs) -> None:
+        app.pushed_at = time.perf_counter()  # type: ignore[attr-defined]
+        show_view(*args, **kwargs)
+
+    app.scene.show_view = tracked  # type: ignore[method-assign]
+
+
+def slider_move(app: ExplorerApp, recorder: FrameRecorder, exponent: float) -> float:
+    """Seconds from a left-elbow slider move to its last frame delivered."""
+    start = time.perf_counter()
+    app.sampling_changed(app.state.set_joint_exponent("left_elbow", exponent))
+    app.wait_idle(60)
+    return recorder.delivered_after(start, app.pushed_at)[0]  # type: ignore[attr-defined]
+
+
+def occluder_move(app: ExplorerApp, recorder: FrameRecorder, ident: int, box) -> float:
+    """Seconds from an occluder edit to the new prediction's last frame delivered."""
+    start = time.perf_counter()
+    app.occluders_changed(app.state.move_occluder(ident, box))
+    app.wait_idle(60)
+    assert not app.errors, app.errors
+    return recorder.delivered_after(start, app.pushed_at)[0]  # type: ignore[attr-defined]
+
+
+def report_paired(setting: str, repeats: int, threads: int, real: bool) -> None:
+    """Plain vs compare ``setting``, alternated move by move (see the module docstring)."""
+    torch.set_num_threads(threads)
+    if real:
+        provider, image = PredictorProvider(device="cpu"), load_image(shipped_photo()).pixels
+    else:
+        provider = OcclusionAwareDouble()
+        image = provider.scene.image
+    apps = {name: ExplorerApp(provider, image, port=0) for name in ("plain", "compare")}
+    for app in apps.values():
+        track_pushes(app)
+    recorders = {name: FrameRecorder(app.url) for name, app in apps.items()}
+    for app in apps.values():
+        app.wait_idle(120)
+    apps["compare"].set_compare(parse_compare(setting))
+    apps["compare"].wait_idle(120)
+    time.sleep(0.5)
+    loads = [os.getloadavg()[0]]
+    slider: dict[str, list[float]] = {name: [] for name in apps}
+    for i in range(repeats + 2):
+        for name, app in apps.items() if i % 2 else reversed(apps.items()):
+            seconds = slider_move(app, recorders[name], -0.05 * (i % 10 + 1))
+            if i >= 2:
+                slider[name].append(seconds)
+    box = shin_box(apps["plain"]) if real else (250, 210, 300, 260)
+    idents = {name: app.state.add_occluder(box).ident for name, app in apps.items()}
+    for app in apps.values():
+        app.occluders_changed(True)
+        app.wait_idle(60)
+    occluder: dict[str, list[float]] = {name: [] for name in apps}
+    for i in range(max(repeats // 2, 5)):
+        x0, y0, x1, y1 = box
+        for name, app in apps.items() if i % 2 else reversed(apps.items()):
+            moved = (x0 - 1 - i, y0, x1, y1 + 1 + i)
+            occluder[name].append(occluder_move(app, recorders[name], idents[name], moved))
+    loads.append(os.getloadavg()[0])
+    for app in apps.values():
+        app.stop()
+    model = "shipped Predictor on the shipped photo" if real else "test double"
+    when = time.strftime("%Y-%m-%d %H:%M %Z")
+    print(f"# explorer plain vs compare {setting}, alternated ({model}) — {when}")
+    machine = platform.processor() or platform.machine()
+    print(
+        f"machine: {machine}, {os.cpu_count()} CPUs, torch threads {threads}, "
+        f"load average {min(loads):.1f}-{max(loads):.1f} (shared)"
+    )
+    print()
+    print("| change -> delivered | plain median ms (best) | compare median ms (best) | ratio |")
+    print("|---|---:|---:|---:|")
+    for what, values in (("slider", slider), ("occluder (incl. 120 ms debounce)", occluder)):
+        plain, compare = values["plain"], values["compare"]
+        ratio = statistics.median(compare) / statistics.median(plain)
+        print(
+            f"| {what} | {median_ms(plain)} ({best_ms(plain)}) | {median_ms(compare)} "
+            f"({best_ms(compare)}) | {ratio:.2f}× |"
+        )
 
 
 class HostileResult(NamedTuple):
