@@ -7,7 +7,10 @@ keeps a small PNG:
 
 - ``docs/figures/lesson_hide_shin.png``: a box over the right shin;
 - ``docs/figures/lesson_sharpen_elbow.png``: the left elbow's concentration times 10;
-- ``docs/figures/lesson_network_only.png``: the network alone (no keypoint evidence).
+- ``docs/figures/lesson_network_only.png``: the network alone (no keypoint evidence);
+- ``docs/figures/lesson_slide_forearm.png``: the slide example, a box over the right forearm
+  (:data:`SLIDE_BOX`, chosen with ``measure_slide_boxes.py``: the box that changes the page
+  most).
 
     python docs/figures/scripts/make_explorer_lessons.py [--pages OUT_FOLDER]
 """
@@ -34,6 +37,8 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--use-angle=gl-egl", "--ignore-g
 VIEWPORT = {"width": 1400, "height": 760}
 WIDTH = 900
 """Width of the kept PNGs (pixels)."""
+SLIDE_BOX = (377, 255, 473, 290)
+"""docs/explorer.md's slide example: the right elbow and wrist of the shipped photo, padded."""
 
 
 def shin_box(posterior: BodyPosterior) -> tuple[float, float, float, float]:
@@ -55,6 +60,8 @@ def limbs_cm(posterior: BodyPosterior) -> dict[str, float]:
         "left shin": 100 * parts["left_knee"],
         "left forearm": 100 * parts["left_elbow"],
         "right forearm": 100 * parts["right_elbow"],
+        "right hand": 100 * parts["right_wrist"],
+        "left hand": 100 * parts["left_wrist"],
     }
 
 
@@ -99,6 +106,7 @@ def main() -> None:
         "lesson_hide_shin": predictor.predict(photo, occluders=[box]),
         "lesson_sharpen_elbow": plain.with_concentration("left_elbow", 10.0),
         "lesson_network_only": predictor.predict(photo, evidence=False),
+        "lesson_slide_forearm": predictor.predict(photo, occluders=[SLIDE_BOX]),
     }
     print(f"shin box {box}")
     print(f"as predicted ({plain.evidence_fit.evidence_count} keypoints as evidence):",
