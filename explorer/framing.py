@@ -30,13 +30,13 @@ PANEL_WIDTH_PX = 420
 BODY_HALF_SPAN_M = 0.95
 """Most the framing leaves right of a body's centre (outstretched arms reach ~0.85 m), so its
 hand never goes under the panel; the combined-shape body (a T-pose) always gets it."""
-HAND_ROOM_M = 0.15
+HAND_ROOM_M = 0.25
 """Room beyond the wrist keypoint for the hand and the samples' spread."""
 MIN_REACH_M = 0.45
 """Least room right of a body's centre (arms down: the shoulder and the hip)."""
 TITLE_ROOM_M = 0.25
 """Room above the photo's top (or 1 m) for the column titles."""
-MARGIN_M = 0.12
+MARGIN_M = 0.2
 
 
 def body_reach(result: object) -> float:

@@ -21,7 +21,13 @@ from hkpd.explorer.canvas_key import (
     key_rect,
 )
 from hkpd.explorer.colour_map import COLOURINGS
-from hkpd.explorer.framing import BODY_HALF_SPAN_M, MIN_REACH_M, body_reach, framing
+from hkpd.explorer.framing import (
+    BODY_HALF_SPAN_M,
+    HAND_ROOM_M,
+    MIN_REACH_M,
+    body_reach,
+    framing,
+)
 from hkpd.explorer.photo_geometry import PhotoPlacement
 
 PLACEMENT = PhotoPlacement(480, 640, (-1.65, 0.0, 0.0), 2.0)
@@ -62,7 +68,7 @@ def posed(right_wrist_x: float):
 
 def test_the_framing_fits_the_bodies_reach() -> None:
     assert body_reach(None) == BODY_HALF_SPAN_M  # unknown: room for outstretched arms
-    assert body_reach(posed(0.3)) == pytest.approx(0.45)
+    assert body_reach(posed(0.3)) == pytest.approx(0.3 + HAND_ROOM_M)
     assert body_reach(posed(0.05)) == MIN_REACH_M
     assert body_reach(posed(2.0)) == BODY_HALF_SPAN_M
     (_, _, arms_down), _ = framing(PLACEMENT, 1.56, 0.7, reach=body_reach(posed(0.3)))
