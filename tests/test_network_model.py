@@ -3,6 +3,8 @@ hierarchical head's conditioning on ancestors."""
 
 from __future__ import annotations
 
+import copy
+
 import pytest
 import torch
 
@@ -77,6 +79,35 @@ def test_gradients_reach_the_backbone(network):
     for name, parameter in network.named_parameters():
         assert parameter.grad is not None, f"no gradient for {name}"
         assert torch.isfinite(parameter.grad).all(), name
+
+
+@pytest.mark.parametrize("base_width", [4, 8])
+def test_backbone_weight_gradients_are_right_and_repeatable(base_width):
+    """Narrow backbones' shortcut projections (1x1, stride 2, < 8 input channels) got a wrong,
+    call-to-call different weight gradient from torch 2.13's channels-last CPU kernel (and a
+    corrupted heap with one thread); every width must match the same network in float64."""
+    from hkpd.network.backbone import ResNetBackbone
+
+    torch.manual_seed(0)
+    backbone = ResNetBackbone(18, base_width)
+    for module in backbone.modules():  # non-zero residual branches, so every weight matters
+        if isinstance(module, torch.nn.BatchNorm2d):
+            torch.nn.init.ones_(module.weight)
+    images = torch.rand(4, 18, 32, 32)
+
+    def gradients(network: torch.nn.Module, dtype: torch.dtype) -> dict[str, torch.Tensor]:
+        network.zero_grad()
+        network(images.to(dtype)).square().sum().backward()
+        return {name: p.grad.double() for name, p in network.named_parameters()}
+
+    first = gradients(backbone, torch.float32)
+    for _ in range(3):
+        again = gradients(backbone, torch.float32)
+        assert all(torch.equal(again[name], first[name]) for name in first)
+    exact = gradients(copy.deepcopy(backbone).double(), torch.float64)
+    for name, value in exact.items():  # float32 rounding: ~1e-3 of a parameter's largest
+        error = (first[name] - value).abs().max() / value.abs().max().clamp_min(1e-12)
+        assert error < 2e-2, name  # the wrong kernel was off by ~0.5
 
 
 def test_config_round_trip_and_from_config():

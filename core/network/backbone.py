@@ -8,6 +8,13 @@ The convolutions run in the channels-last (NHWC) memory layout: on the developme
 (2 threads, ResNet-18, batch 16 at 256 px) that made inference 1.5x and a training step
 (forward + backward) 4x faster than the default NCHW layout. Inputs in either layout are
 accepted; weights are kept channels-last (``Module.to`` and ``load_state_dict`` preserve that).
+
+Backbones narrower than ``CHANNELS_LAST_MIN_WIDTH`` (the tiny networks of tests and smoke runs)
+stay in NCHW: torch 2.13's CPU kernel (oneDNN 3.12, AVX2) for the weight gradient of a
+channels-last 1×1 strided convolution with fewer than 8 input channels, the shortcut
+projection of such a backbone, writes out of bounds. With two threads the gradient comes out
+wrong and different on every call (half its magnitude off); with one thread glibc aborts on
+the corrupted heap (``tests/test_network_model.py`` checks a narrow backbone's gradient).
 """
 
 from __future__ import annotations
@@ -16,6 +23,9 @@ from collections.abc import Sequence
 
 import torch
 from torch import nn
+
+CHANNELS_LAST_MIN_WIDTH = 8
+"""The narrowest ``base_width`` that runs channels-last (see the module docstring)."""
 
 
 class BasicBlock(nn.Module):
@@ -80,7 +90,12 @@ class ResNetBackbone(nn.Module):
         self.stages = nn.Sequential(*stages)
         self.feature_dim = channels
         self._initialise()
-        self.to(memory_format=torch.channels_last)
+        self.memory_format = (
+            torch.channels_last
+            if base_width >= CHANNELS_LAST_MIN_WIDTH
+            else torch.contiguous_format
+        )
+        self.to(memory_format=self.memory_format)
 
     def _initialise(self) -> None:
         for module in self.modules():
@@ -97,5 +112,5 @@ class ResNetBackbone(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``(B, in_channels, H, W)`` images to ``(B, feature_dim)`` pooled features."""
-        x = x.contiguous(memory_format=torch.channels_last)
+        x = x.contiguous(memory_format=self.memory_format)
         return self.stages(self.stem(x)).mean(dim=(-2, -1))
