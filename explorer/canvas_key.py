@@ -27,6 +27,9 @@ KEY_SIZE_PX = (880, 1280)
 """``(height, width)`` of the key image, pixels (large: it is read at a distance)."""
 TEXT_SIZE = 1.7
 """Hershey font scale of the rows' text."""
+SENT_SCALE = 0.4
+"""The key is drawn large and sent at this scale (512 x 352 pixels, ~80 kB of PNG: it is read
+at about that size, and every saved page carries it)."""
 KEY_WIDTH_M = 1.5
 """World width of the key; its height follows the image's aspect."""
 KEY_GAP_M = 0.1
@@ -138,8 +141,10 @@ class CanvasKey:
             if self.placement is None:
                 return
             x, y, width, height = key_rect(self.placement)
+            image = cv2.resize(key_image(self.colouring), None, fx=SENT_SCALE, fy=SENT_SCALE,
+                               interpolation=cv2.INTER_AREA)  # fmt: skip
             self.server.scene.add_image(
-                KEY_NODE, key_image(self.colouring), width, height, format="png",
+                KEY_NODE, image, width, height, format="png",
                 wxyz=HALF_TURN_ABOUT_X, position=(x, y, LEGEND_Z), cast_shadow=False,
                 receive_shadow=False,
             )  # fmt: skip
