@@ -25,6 +25,7 @@ from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.quality import (
     FLAG_MEANINGS,
     QUALITY_WEIGHTS,
+    SCORE_SIGNALS,
     SIGNAL_NAMES,
     ReadingQuality,
     facing_ambiguous,
@@ -138,16 +139,17 @@ def test_a_weak_face_against_the_shoulders_is_facing_ambiguous() -> None:
 
 
 def test_the_weights_point_the_obvious_way() -> None:
-    weights = dict(zip(SIGNAL_NAMES, QUALITY_WEIGHTS[1:], strict=True))
-    for better in ("confident_share", "mean_confidence", "log2_person_px"):
-        assert weights[better] >= 0, better
-    for worse in ("outside_share", "misfit", "downweighted_share"):
-        assert weights[worse] <= 0, worse
+    weights = dict(zip(SCORE_SIGNALS, QUALITY_WEIGHTS[1:], strict=True))
+    assert set(SCORE_SIGNALS) <= set(SIGNAL_NAMES)
+    for better in ("mean_confidence", "log2_person_px", "detector_score"):
+        assert weights[better] > 0, better
+    for worse in ("outside_share", "misfit", "prior_shift", "mask_outside"):
+        assert weights[worse] < 0, worse
 
 
 def test_quality_score_is_a_probability_for_any_signals() -> None:
     rng = np.random.default_rng(0)
-    signals = rng.normal(0, 100, size=(200, len(SIGNAL_NAMES)))
+    signals = rng.normal(0, 100, size=(200, len(SCORE_SIGNALS)))
     scores = quality_score(signals)
     assert scores.shape == (200,) and ((scores >= 0) & (scores <= 1)).all()
 
@@ -180,3 +182,42 @@ def test_reliability_rows_and_the_off_share_above_the_threshold() -> None:
     assert summary["off"] == 2 and summary["readings"] == 5
     table = quality_table("toy", score, np.where(off, 0.5, 0.05))
     assert "| 0.9-1.0 | 2 |" in table and "AUROC" in table
+
+
+def test_the_explorer_status_warns_on_a_low_reading_and_shows_a_good_ones_score() -> None:
+    from hkpd.explorer.panels.status import quality_text
+
+    low = quality_text(SimpleNamespace(quality=ReadingQuality(0.2, ("small_person",), {})))
+    assert "Check this reading" in low and "small_person" in low and "0.20" in low
+    assert quality_text(SimpleNamespace(quality=ReadingQuality(0.9, (), {}))) == " *Quality 0.90.*"
+    assert quality_text(SimpleNamespace()) == ""  # a custom provider's posterior
+
+
+def test_a_crop_without_a_side_sizes_the_person_by_its_keypoints(body) -> None:
+    posterior = reading(body)
+    crop = SimpleNamespace(size=256, crop_to_image=posterior.crop.crop_to_image)
+    bare = replace(posterior, crop=crop, network_input=None)
+    quality = bare.quality
+    extent = np.ptp(posterior.keypoints.numpy(), axis=0).max()
+    assert 2.0 ** quality.signals["log2_person_px"] == pytest.approx(extent, rel=1e-5)
+    assert 0.0 <= quality.score <= 1.0
+
+
+def test_hard_synthetic_photos_are_reproducible_and_their_truth_is_in_the_photo() -> None:
+    from hkpd.evaluation.quality_data import CANVAS, hard_synthetic_photos, reading_error
+
+    photos = hard_synthetic_photos(4, seed=3)
+    again = hard_synthetic_photos(4, seed=3)
+    for photo, copy in zip(photos, again, strict=True):
+        assert photo.image.shape == (CANVAS, CANVAS, 3) and photo.image.dtype == np.uint8
+        assert np.array_equal(photo.image, copy.image)
+        shown = photo.keypoints[photo.visible]
+        assert ((shown >= 0) & (shown <= CANVAS - 1)).all()
+        assert 1.0 <= photo.size <= 2 * CANVAS
+        if photo.search_box is not None:  # a second person: read in the first one's box
+            x0, y0, x1, y1 = photo.search_box
+            assert (shown[:, 0] >= x0).all() and (shown[:, 0] <= x1).all()
+            assert (shown[:, 1] >= y0).all() and (shown[:, 1] <= y1).all()
+    truth, visible = photos[0].keypoints, np.ones(17, bool)
+    moved = truth + np.array([30.0, 40.0])  # 50 px off everywhere
+    assert reading_error(moved, truth, visible, 250.0) == pytest.approx(0.2)

@@ -9,9 +9,10 @@ computed once per posterior.
 **The score** is the probability that the reading is *not off*, where off means the mode's 2D
 keypoints lie on average more than 0.2 of the person's size from where they truly are (the
 project's measure on coco_mini and synthetic photos: ``docs/prediction.md``, "Quality score").
-It is a logistic rule on a few standardised signals (:data:`SIGNAL_NAMES`) whose weights
-(:data:`QUALITY_WEIGHTS`) were chosen by ``docs/experiments/quality_fit.py`` on coco_mini
-train2017 and synthetic photos with hard cases only; calibrated means that among readings scored
+It is a logistic rule on a few standardised signals (:data:`SCORE_SIGNALS`, some of
+:data:`SIGNAL_NAMES`) whose weights (:data:`QUALITY_WEIGHTS`) were chosen by
+``docs/experiments/quality_fit.py`` on coco_mini train2017 and synthetic photos with hard cases
+only; calibrated means that among readings scored
 about ``s``, about ``s`` are not off.
 
 **The flags** (:data:`FLAG_MEANINGS`) name what is wrong in words, each by a fixed threshold
@@ -49,8 +50,8 @@ SIGNAL_NAMES: tuple[str, ...] = (
 
 - ``confident_share``: share of the 17 keypoints the detector scores >= 0.6;
 - ``mean_confidence``: the detector's mean confidence over the 17;
-- ``log2_person_px``: log2 of the person's size in photo pixels (the crop side / 1.2, the
-  keypoints' longer extent);
+- ``log2_person_px``: log2 of the person's size in photo pixels (the crop side / 1.2: the
+  detected keypoints' longer extent);
 - ``outside_share``: share of the 17 detected keypoints placed outside the photo;
 - ``misfit``: mean distance of the mode's reprojected keypoints from the evidence keypoints,
   in units of the person's size (1 when there is no evidence);
@@ -69,15 +70,32 @@ A fallback to the network's posterior is a flag, not a signal: none of the fitti
 back, so the data could not weigh it.
 """
 
-QUALITY_MEAN = (0.8, 0.8, 8.0, 0.05, 0.05, 0.1, 0.2, 0.1, 0.0, 0.8)
-"""Each signal's mean over the fitting data (:data:`SIGNAL_NAMES` order)."""
+SCORE_SIGNALS: tuple[str, ...] = (
+    "mean_confidence",
+    "log2_person_px",
+    "outside_share",
+    "misfit",
+    "prior_shift",
+    "mask_outside",
+    "detector_score",
+)
+"""The signals the score weighs. The others are reported (and some raise flags) but left out:
+``confident_share`` repeats ``mean_confidence`` (fitted together their weights split with
+opposite signs), and ``downweighted_share`` and ``face_minus_shoulders`` came out weighted
+against their meaning (more outliers or a weaker face scored *higher*), so the rule would
+not have been monotone in them (``docs/prediction.md``, "Quality score")."""
 
-QUALITY_SPREAD = (0.2, 0.15, 1.0, 0.1, 0.05, 0.1, 0.1, 0.1, 2.0, 0.2)
+QUALITY_MEAN = (0.8705, 7.096, 0.01681, 0.01849, 0.09747, 0.08005, 0.7455)
+"""Each score signal's mean over the fitting data (:data:`SCORE_SIGNALS` order)."""
+
+QUALITY_SPREAD = (0.09429, 0.9429, 0.0626, 0.008576, 0.07331, 0.08125, 0.276)
 """Each signal's standard deviation over the fitting data."""
 
-QUALITY_WEIGHTS = (2.0, 0.5, 0.5, 0.5, -0.5, -0.3, -0.3, -0.3, -0.5, 0.2, 0.2)
-"""The logistic rule's weights: the bias, then one per standardised signal (a placeholder until
-``docs/experiments/quality_fit.py`` writes the fitted ones)."""
+QUALITY_WEIGHTS = (2.528, 0.311, 0.07402, -0.03846, -0.6137, -0.6352, -0.3642, 0.4912)
+"""The logistic rule's weights: the bias, then one per standardised score signal, as
+``python docs/experiments/quality_fit.py fit`` printed them (readings collected on 2026-12-06
+with the shipped weights: coco_mini train2017, 43 people in their annotated boxes and 27 in the
+detector's, and 266 synthetic photos of seed 1)."""
 
 SMALL_PERSON_PX = 96.0
 """``small_person``: the person spans fewer photo pixels than this (the network reads 256)."""
@@ -163,7 +181,7 @@ class ReadingQuality:
 
 
 def quality_score(signals: np.ndarray) -> np.ndarray:
-    """``(..., S)`` signals (:data:`SIGNAL_NAMES` order) -> ``(...)`` scores in [0, 1]."""
+    """``(..., S)`` signals (:data:`SCORE_SIGNALS` order) -> ``(...)`` scores in [0, 1]."""
     values = np.asarray(signals, dtype=np.float64)
     standard = (values - np.asarray(QUALITY_MEAN)) / np.asarray(QUALITY_SPREAD)
     weights = np.asarray(QUALITY_WEIGHTS)
@@ -174,7 +192,7 @@ def quality_score(signals: np.ndarray) -> np.ndarray:
 def reading_quality(posterior: BodyPosterior) -> ReadingQuality:
     """The quality record of ``posterior`` (module docstring)."""
     signals = reading_signals(posterior)
-    score = float(quality_score(np.array([signals[name] for name in SIGNAL_NAMES])))
+    score = float(quality_score(np.array([signals[name] for name in SCORE_SIGNALS])))
     return ReadingQuality(score, reading_flags(posterior, signals), signals)
 
 
@@ -182,7 +200,7 @@ def reading_signals(posterior: BodyPosterior) -> dict[str, float]:
     """``{name: value}`` of :data:`SIGNAL_NAMES` for ``posterior``."""
     confidences = _detector_confidences(posterior)
     keypoints = _detector_keypoints(posterior)
-    person_px = float(posterior.crop.side) / CROP_MARGIN
+    person_px = _person_px(posterior, keypoints, confidences)
     mode_points = posterior.mode().keypoints2d[0].detach().cpu().double().numpy()  # (17, 2)
     return {
         "confident_share": float(np.mean(confidences >= CONFIDENCE_THRESHOLD)),
@@ -260,6 +278,16 @@ def _detector_confidences(posterior: BodyPosterior) -> np.ndarray:
 def _detector_keypoints(posterior: BodyPosterior) -> np.ndarray:
     """``(17, 2)`` detected keypoints, photo pixels."""
     return posterior.keypoints.detach().cpu().double().numpy()
+
+
+def _person_px(posterior: BodyPosterior, keypoints: np.ndarray, confidences: np.ndarray) -> float:
+    """The person's size in photo pixels: the crop's side / 1.2 (the keypoints' longer extent
+    it was made from), or for a crop that gives no side, the confident keypoints' extent."""
+    side = getattr(posterior.crop, "side", None)
+    if side is not None:
+        return float(side) / CROP_MARGIN
+    confident = keypoints[confidences >= CONFIDENCE_THRESHOLD]
+    return float(np.ptp(confident, axis=0).max()) if len(confident) >= 2 else 1.0
 
 
 def _image_size(posterior: BodyPosterior) -> tuple[int, int] | None:

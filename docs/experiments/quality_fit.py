@@ -6,7 +6,7 @@ score").
    hard cases (``--synthetic`` photos for fitting, seed 1; ``--held-out`` photos, seed 2), with
    the shipped predictor; write every reading's signals and error to ``--cache`` (an ``.npz``).
 2. ``fit``: an L2-penalised logistic regression of "not off" on the standardised signals
-   (:data:`hkpd.prediction.quality.SIGNAL_NAMES`), fitted on coco_mini **train2017** and the
+   (:data:`hkpd.prediction.quality.SCORE_SIGNALS`), fitted on coco_mini **train2017** and the
    seed-1 synthetic readings only (each source weighted to the same total, so the few real
    readings count as much as the many synthetic ones); prints the constants to paste into
    ``core/prediction/quality.py`` and, for every source, the AUROC, the share off among readings
@@ -29,7 +29,7 @@ import torch
 from hkpd.evaluation.quality_data import coco_readings, synthetic_readings
 from hkpd.evaluation.quality_metrics import OFF_FRACTION, auroc, quality_summary, quality_table
 from hkpd.prediction import Predictor
-from hkpd.prediction.quality import SIGNAL_NAMES, quality_score
+from hkpd.prediction.quality import SCORE_SIGNALS, SIGNAL_NAMES, quality_score
 
 FIT_SOURCES = ("train2017/annotated", "train2017/detector", "synthetic")
 PENALTY = 1.0
@@ -76,7 +76,9 @@ def logistic(features: np.ndarray, good: np.ndarray, weight: np.ndarray) -> np.n
 def fit(cache: Path) -> None:
     """Fit on the fitting sources, print the constants and every source's table."""
     data = np.load(cache)
-    source, signals, error = data["source"], data["signals"], data["error"]
+    source, every, error = data["source"], data["signals"], data["error"]
+    names = [str(name) for name in data["signal_names"]]
+    signals = every[:, [names.index(name) for name in SCORE_SIGNALS]]
     chosen = np.isin(source, FIT_SOURCES)
     mean = signals[chosen].mean(0)
     spread = signals[chosen].std(0) + 1e-6
@@ -96,8 +98,9 @@ def fit(cache: Path) -> None:
     print("\n| source | readings | off | AUROC (fitted) | off at >= 0.5 | AUROC (shipped) | "
           "off at >= 0.5 (shipped) |")  # fmt: skip
     print("|---|---|---|---|---|---|---|")
-    for name in sorted(set(source.tolist())):
-        rows = source == name
+    groups = {name: source == name for name in sorted(set(source.tolist()))}
+    groups["val2017 (both boxes)"] = np.char.startswith(source.astype(str), "val2017")
+    for name, rows in groups.items():
         now, before = (
             quality_summary(fitted[rows], error[rows]),
             quality_summary(shipped[rows], error[rows]),
@@ -105,15 +108,14 @@ def fit(cache: Path) -> None:
         print(f"| {name} | {int(now['readings'])} | {int(now['off'])} | {now['auroc']:.3f} | "
               f"{now['off_share_at_0.5']:.3f} | {before['auroc']:.3f} | "
               f"{before['off_share_at_0.5']:.3f} |")  # fmt: skip
-    for name in sorted(set(source.tolist())):
-        rows = source == name
+    for name, rows in groups.items():
         print("\n" + quality_table(f"{name} (shipped weights)", shipped[rows], error[rows]))
     print("\nSingle signals' AUROC (higher signal = better):")
     for name in sorted(set(source.tolist())):
         rows = source == name
         off = error[rows] > OFF_FRACTION
         cells = ", ".join(
-            f"{signal} {auroc(signals[rows, i], off):.2f}" for i, signal in enumerate(SIGNAL_NAMES)
+            f"{signal} {auroc(every[rows, i], off):.2f}" for i, signal in enumerate(names)
         )
         print(f"- {name}: {cells}")
 
