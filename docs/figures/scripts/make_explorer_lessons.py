@@ -12,7 +12,10 @@ keeps a small PNG:
   (:data:`SLIDE_BOX`, chosen with ``measure_slide_boxes.py``: the box that changes the page
   most).
 
-    python docs/figures/scripts/make_explorer_lessons.py [--pages OUT_FOLDER]
+It also prints lesson 4's numbers (the person mask in the fit: the shape coefficients beta_0
+and beta_2 with their std, and the mean vertex uncertainty, without and with the mask).
+
+    python docs/figures/scripts/make_explorer_lessons.py [--pages OUT_FOLDER] [--numbers-only]
 """
 
 from __future__ import annotations
@@ -65,6 +68,25 @@ def limbs_cm(posterior: BodyPosterior) -> dict[str, float]:
     }
 
 
+def mask_lesson(predictor: Predictor, photo: np.ndarray) -> None:
+    """Print lesson 4's numbers: beta_0 and beta_2 (mean ± std), the whole body's mean vertex
+    uncertainty (cm, 100 samples, seed 0) and the prediction's seconds, without and with the
+    person mask in the fit."""
+    import time
+
+    for mask in (False, True):
+        predictor.silhouette_evidence = mask
+        started = time.perf_counter()
+        posterior = predictor.predict(photo)
+        seconds = time.perf_counter() - started
+        mean, std = posterior.shape_mean.tolist(), posterior.shape_std.tolist()
+        whole = 100 * float(posterior.vertex_uncertainty(100, seed=0).mean())
+        print(f"person mask {'on ' if mask else 'off'}: beta_0 {mean[0]:.2f} ± {std[0]:.2f}, "
+              f"beta_2 {mean[2]:.2f} ± {std[2]:.2f}, whole body {whole:.1f} cm, "
+              f"sex {posterior.sex} {posterior.sex_probability:.2f}, {seconds:.2f} s")  # fmt: skip
+    predictor.silhouette_evidence = False
+
+
 def screenshot(page_html: str, target: Path) -> None:
     """Open the page from a file in Chromium (offline) and keep a ``WIDTH``-pixel PNG."""
     from playwright.sync_api import sync_playwright
@@ -97,9 +119,11 @@ def screenshot(page_html: str, target: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pages", type=Path, default=None, help="also keep the HTML pages here")
+    parser.add_argument("--numbers-only", action="store_true", help="print, take no screenshot")
     args = parser.parse_args()
     predictor = Predictor.from_pretrained(device="cpu")
     photo = load_image(shipped_photo()).pixels
+    mask_lesson(predictor, photo)
     plain = predictor.predict(photo)
     box = shin_box(plain)
     lessons = {
@@ -116,6 +140,8 @@ def main() -> None:
         counted = fit.evidence_count if posterior.conditioned and fit is not None else 0
         print(f"{name} ({counted} keypoints as evidence):",
               {k: round(v, 2) for k, v in limbs_cm(posterior).items()})  # fmt: skip
+        if args.numbers_only:
+            continue
         page = show(posterior, photo_name="warrior_lunge.jpg", model_name="the shipped model")
         if args.pages is not None:
             page.save(args.pages / f"{name}.html", force=True)
