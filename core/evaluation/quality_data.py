@@ -208,7 +208,7 @@ def coco_quality_report(predictor, coco_dir: Path, split: str | None = None) -> 
         score = np.array([reading.score for reading in readings])
         error = np.array([reading.error for reading in readings])
         parts.append(quality_table(name, score, error))
-    return "### Quality score against the error\n\n" + "\n\n".join(parts)
+    return "### Quality score against the error\n\n" + "\n\n".join(parts) + "\n"
 
 
 def synthetic_readings(
