@@ -4,7 +4,8 @@ The explorer's own columns show posterior A (what the panel says: this model, th
 these concentrations). With a compare setting on, B is predicted beside it and drawn in a
 second set of columns (:mod:`hkpd.explorer.compare_scene`):
 
-* ``network``: the network alone (no keypoint evidence), same boxes;
+* ``network``: the network alone (no keypoint evidence), same boxes (the reading A's fit
+  updated, when A has one: :func:`network_reading`);
 * ``no-occluders``: the same evidence setting without any box;
 * ``default-concentrations``: the same posterior with every concentration factor at 1×;
 * a checkpoint path: another model (e.g. the ablation's ``independent_samples.pt`` beside
@@ -13,7 +14,8 @@ second set of columns (:mod:`hkpd.explorer.compare_scene`):
 B is sampled with A's seed and count and A's concentration factors (except for
 ``default-concentrations``), and its per-vertex uncertainty divided by A's is the change
 colouring between the two (B ÷ A). B is predicted once per prediction of A (an occluder
-edit costs two predictions) and sampled once per slider move (a slider move costs two draws;
+edit costs two predictions; for ``network`` one, when A's fit kept the network's reading) and
+sampled once per slider move (a slider move costs two draws;
 B's most likely body is computed once per prediction, and its columns' titles, colour bar and
 heatmap positions are sent again only when they change).
 """
@@ -99,6 +101,22 @@ def _sampling_key(snapshot: StateSnapshot) -> tuple:
         snapshot.joint_exponents, snapshot.global_exponent, snapshot.shape_std_exponent,
         snapshot.num_samples, snapshot.num_displayed, snapshot.seed, snapshot.selected_joint,
     )  # fmt: skip
+
+
+def network_reading(posterior: BodyPosterior) -> BodyPosterior | None:
+    """The network's own posterior that ``posterior``'s keypoint fit updated (its ``prior``:
+    the same photo, boxes and crop), or None when there is none (the network alone, a fit
+    that fell back, a turned-around reading, a custom provider's posterior).
+
+    It is what predicting with the evidence off returns: the reading stage does not depend on
+    the evidence (on the shipped photo the two are bit-identical with no box and with boxes
+    over the right shin, the left elbow and the right forearm; ``tests/
+    test_explorer_compare_real_model.py``), so compare's ``network`` B needs no second
+    prediction."""
+    prior = getattr(posterior, "prior", None)
+    if prior is None or not getattr(posterior, "conditioned", False):
+        return None
+    return None if getattr(posterior, "turned", False) else prior
 
 
 def _load_model(path: str) -> PosteriorProvider:
@@ -208,7 +226,10 @@ class Comparison:
         if setting.kind == "default-concentrations":
             posterior = result.posterior
         elif setting.kind == "network":
-            posterior = self._predict(image, boxes, False, False, box).posterior
+            reading = network_reading(result.posterior)  # no second prediction when A has it
+            if reading is None:
+                reading = self._predict(image, boxes, False, False, box).posterior
+            posterior = reading
         elif setting.kind == "no-occluders":
             posterior = self._predict(image, [], evidence, silhouette, box).posterior
         else:

@@ -149,3 +149,35 @@ def test_a_slider_move_redraws_only_what_b_changed(app) -> None:
     app.sampling_changed(app.state.set_joint_exponent("left_elbow", 0.0))
     app.set_compare(None)
     assert app.wait_idle(60) and not app.compare_columns.shown
+
+
+def test_network_b_is_the_reading_a_s_fit_updated_when_there_is_one() -> None:
+    """Compare's ``network`` B takes A's ``prior`` (the network's reading its fit updated: what
+    predicting with the evidence off returns) instead of predicting again; without one (the
+    network alone, a turned reading, the double's posteriors) it predicts."""
+    from dataclasses import replace
+
+    from hkpd.explorer.compare import Comparison, network_reading
+    from hkpd.explorer.state import ExplorerState
+
+    double = OcclusionAwareDouble()
+    image = double.scene.image
+    network = double.predict(image, [], evidence=False).posterior
+    conditioned = replace(network, source="evidence", prior=network)
+    assert network_reading(conditioned) is network
+    assert network_reading(network) is None
+    assert network_reading(replace(conditioned, turned=True)) is None
+    calls = []
+
+    def predict(*arguments) -> PredictionResult:
+        calls.append(arguments)
+        return double.predict(image, [], evidence=False)
+
+    comparison = Comparison(predict)
+    comparison.set_setting(CompareSetting("network"))
+    state = ExplorerState()
+    state.set_image(image.shape[1], image.shape[0])
+    comparison.predict(image, state.snapshot(), PredictionResult(conditioned))
+    assert comparison._prediction.posterior is network and not calls
+    comparison.predict(image, state.snapshot(), PredictionResult(network))  # nothing kept
+    assert len(calls) == 1 and calls[0][2] is False  # predicted with the evidence off
