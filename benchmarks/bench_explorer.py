@@ -31,7 +31,8 @@ node it holds, so the client sees a node as soon as the server has it (no browse
 With ``--paired SETTING`` it runs two apps in one process on the same provider, one plain and
 one comparing against SETTING, and alternates every slider move and occluder edit between them,
 so that both see the same load (the shared VM's load moves by a factor of two within minutes);
-it prints both medians and their ratio.
+it prints both medians and their ratio, and the CPU time the process used per move (all
+threads, the websocket client's included), which the load disturbs far less than wall time.
 
 Usage: python benchmarks/bench_explorer.py [--threads 2] [--repeats 15] [--real] [--uploads 20]
        python benchmarks/bench_explorer.py --startup 5 [--photo PATH]
@@ -78,6 +79,9 @@ from hkpd.explorer.provider import PredictorProvider
 from hkpd.prediction.image_input import load_image
 
 QUIET_S = 0.15
+SETTLE_S = 0.4
+"""``--paired``: pause before each move, so that one app's tail (frames still being compressed
+and sent) does not fall into the other app's measurement."""
 STARTUP_NODES = {"photo": "/photo", "mode": "/body/mode", "heatmap": "/heat/points"}
 """Scene nodes of the first complete view, by what they show."""
 
@@ -317,21 +321,26 @@ def track_pushes(app: ExplorerApp) -> None:
     app.scene.show_view = tracked  # type: ignore[method-assign]
 
 
-def slider_move(app: ExplorerApp, recorder: FrameRecorder, exponent: float) -> float:
-    """Seconds from a left-elbow slider move to its last frame delivered."""
-    start = time.perf_counter()
+def slider_move(app: ExplorerApp, recorder: FrameRecorder, exponent: float) -> tuple[float, float]:
+    """Seconds from a left-elbow slider move to its last frame delivered, and the CPU seconds
+    the process used meanwhile (all threads: the worker, viser's sending, the client)."""
+    start, cpu = time.perf_counter(), time.process_time()
     app.sampling_changed(app.state.set_joint_exponent("left_elbow", exponent))
     app.wait_idle(60)
-    return recorder.delivered_after(start, app.pushed_at)[0]  # type: ignore[attr-defined]
+    seconds = recorder.delivered_after(start, app.pushed_at)[0]  # type: ignore[attr-defined]
+    return seconds, time.process_time() - cpu
 
 
-def occluder_move(app: ExplorerApp, recorder: FrameRecorder, ident: int, box) -> float:
-    """Seconds from an occluder edit to the new prediction's last frame delivered."""
-    start = time.perf_counter()
+def occluder_move(
+    app: ExplorerApp, recorder: FrameRecorder, ident: int, box
+) -> tuple[float, float]:
+    """As :func:`slider_move`, for an occluder edit (a new prediction)."""
+    start, cpu = time.perf_counter(), time.process_time()
     app.occluders_changed(app.state.move_occluder(ident, box))
     app.wait_idle(60)
     assert not app.errors, app.errors
-    return recorder.delivered_after(start, app.pushed_at)[0]  # type: ignore[attr-defined]
+    seconds = recorder.delivered_after(start, app.pushed_at)[0]  # type: ignore[attr-defined]
+    return seconds, time.process_time() - cpu
 
 
 def report_paired(setting: str, repeats: int, threads: int, real: bool) -> None:
@@ -352,9 +361,10 @@ def report_paired(setting: str, repeats: int, threads: int, real: bool) -> None:
     apps["compare"].wait_idle(120)
     time.sleep(0.5)
     loads = [os.getloadavg()[0]]
-    slider: dict[str, list[float]] = {name: [] for name in apps}
+    slider: dict[str, list[tuple[float, float]]] = {name: [] for name in apps}
     for i in range(repeats + 2):
         for name, app in apps.items() if i % 2 else reversed(apps.items()):
+            time.sleep(SETTLE_S)  # the other app's last frames are sent and compressed
             seconds = slider_move(app, recorders[name], -0.05 * (i % 10 + 1))
             if i >= 2:
                 slider[name].append(seconds)
@@ -363,11 +373,12 @@ def report_paired(setting: str, repeats: int, threads: int, real: bool) -> None:
     for app in apps.values():
         app.occluders_changed(True)
         app.wait_idle(60)
-    occluder: dict[str, list[float]] = {name: [] for name in apps}
+    occluder: dict[str, list[tuple[float, float]]] = {name: [] for name in apps}
     for i in range(max(repeats // 2, 5)):
         x0, y0, x1, y1 = box
         for name, app in apps.items() if i % 2 else reversed(apps.items()):
             moved = (x0 - 1 - i, y0, x1, y1 + 1 + i)
+            time.sleep(SETTLE_S)
             occluder[name].append(occluder_move(app, recorders[name], idents[name], moved))
     loads.append(os.getloadavg()[0])
     for app in apps.values():
@@ -381,14 +392,20 @@ def report_paired(setting: str, repeats: int, threads: int, real: bool) -> None:
         f"load average {min(loads):.1f}-{max(loads):.1f} (shared)"
     )
     print()
-    print("| change -> delivered | plain median ms (best) | compare median ms (best) | ratio |")
-    print("|---|---:|---:|---:|")
+    print(
+        "| change -> delivered | plain median ms (best) | compare median ms (best) | ratio "
+        "| CPU ms plain / compare (median) | CPU ratio |"
+    )
+    print("|---|---:|---:|---:|---:|---:|")
     for what, values in (("slider", slider), ("occluder (incl. 120 ms debounce)", occluder)):
-        plain, compare = values["plain"], values["compare"]
+        plain, compare = ([v[0] for v in values[n]] for n in ("plain", "compare"))
+        cpu_plain, cpu_compare = ([v[1] for v in values[n]] for n in ("plain", "compare"))
         ratio = statistics.median(compare) / statistics.median(plain)
+        cpu_ratio = statistics.median(cpu_compare) / statistics.median(cpu_plain)
         print(
             f"| {what} | {median_ms(plain)} ({best_ms(plain)}) | {median_ms(compare)} "
-            f"({best_ms(compare)}) | {ratio:.2f}× |"
+            f"({best_ms(compare)}) | {ratio:.2f}× | {median_ms(cpu_plain)} / "
+            f"{median_ms(cpu_compare)} | {cpu_ratio:.2f}× |"
         )
 
 
