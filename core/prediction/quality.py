@@ -45,6 +45,7 @@ SIGNAL_NAMES: tuple[str, ...] = (
     "mask_outside",
     "face_minus_shoulders",
     "detector_score",
+    "mask_share",
 )
 """The signals the score reads, in :attr:`ReadingQuality.signals`' order:
 
@@ -64,7 +65,9 @@ SIGNAL_NAMES: tuple[str, ...] = (
 - ``face_minus_shoulders``: the nose's confidence logit minus the shoulders' mean (low when the
   face is weakly seen against the body: a back view, ``docs/evidence.md``), clipped to ±10;
 - ``detector_score``: BlazePose's person-detector score (0 when it found nobody in the given
-  box and the landmark model read the box itself).
+  box and the landmark model read the box itself);
+- ``mask_share``: share of the crop's known pixels that BlazePose's person mask gives to the
+  person (probability >= 0.5; 0 without a mask): large when the mask spills onto people nearby.
 
 A fallback to the network's posterior is a flag, not a signal: none of the fitting readings fell
 back, so the data could not weigh it.
@@ -83,7 +86,9 @@ SCORE_SIGNALS: tuple[str, ...] = (
 ``confident_share`` repeats ``mean_confidence`` (fitted together their weights split with
 opposite signs), and ``downweighted_share`` and ``face_minus_shoulders`` came out weighted
 against their meaning (more outliers or a weaker face scored *higher*), so the rule would
-not have been monotone in them (``docs/prediction.md``, "Quality score")."""
+not have been monotone in them; ``mask_share`` helped on the fitting data but turned the mean
+confidence's and the outside share's weights against theirs (``docs/prediction.md``, "Quality
+score")."""
 
 QUALITY_MEAN = (0.8705, 7.096, 0.01681, 0.01849, 0.09747, 0.08005, 0.7455)
 """Each score signal's mean over the fitting data (:data:`SCORE_SIGNALS` order)."""
@@ -213,6 +218,7 @@ def reading_signals(posterior: BodyPosterior) -> dict[str, float]:
         "mask_outside": _mask_outside(posterior, mode_points),
         "face_minus_shoulders": face_minus_shoulders(confidences),
         "detector_score": _detector_score(posterior),
+        "mask_share": _mask_share(posterior),
     }
 
 
@@ -355,6 +361,17 @@ def _prior_shift(posterior: BodyPosterior) -> float:
     relative = before.double().transpose(-1, -2) @ after.double()
     cosine = ((relative.diagonal(dim1=-2, dim2=-1).sum(-1) - 1) / 2).clamp(-1.0, 1.0)
     return float(torch.arccos(cosine).mean())
+
+
+def _mask_share(posterior: BodyPosterior) -> float:
+    """Share of the crop's known pixels with person-mask probability >= 0.5 (0 without one)."""
+    prepared = posterior.network_input
+    if prepared is None or prepared.person_mask is None:
+        return 0.0
+    mask = np.asarray(prepared.person_mask) >= 0.5
+    known = prepared.person_mask_known
+    known = np.ones(mask.shape, bool) if known is None else np.asarray(known, bool)
+    return float(mask[known].mean()) if known.any() else 0.0
 
 
 def _mask_outside(posterior: BodyPosterior, mode_points: np.ndarray) -> float:
