@@ -22,6 +22,8 @@ The pieces:
 - :class:`ReadingConfig`: how the network reads a crop (mirrored too, upright copies of leaning
   people, lean search; :mod:`hkpd.prediction.readings`, the stage ``Predictor`` and
   ``hkpd-eval`` share).
+- :class:`ReadingQuality` (``posterior.quality``): how far to trust a reading, a calibrated
+  score in [0, 1] and named flags (:mod:`hkpd.prediction.quality`).
 - :func:`combine_shapes` -> :class:`CombinedShape`: one shape from several photos of the same
   person (product of the photos' shape Gaussians, or the plain mean as a baseline).
 """
@@ -45,6 +47,7 @@ from hkpd.prediction.network_input import NetworkInput, prepare_network_input
 from hkpd.prediction.occluders import Occluders, apply_occluders, points_under_boxes
 from hkpd.prediction.posterior import BodyMeshes, BodyPosterior
 from hkpd.prediction.predictor import Predictor
+from hkpd.prediction.quality import ReadingQuality
 from hkpd.prediction.readings import ReadingConfig
 from hkpd.prediction.shape_combination import CombinedShape, combine_shapes
 
@@ -67,6 +70,7 @@ __all__ = [
     "Occluders",
     "Predictor",
     "ReadingConfig",
+    "ReadingQuality",
     "apply_occluders",
     "combine_shapes",
     "load_image",
