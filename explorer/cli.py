@@ -164,6 +164,11 @@ def _add_scene_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-evidence", action="store_true",
         help="show the network alone (no conditioning on the 2D keypoints)",
     )  # fmt: skip
+    parser.add_argument(
+        "--turn-around", action="store_true",
+        help="show the turned-around reading: the same keypoints fitted by a body facing the "
+        "other way (for a person seen from behind; Photo › Facing)",
+    )  # fmt: skip
 
 
 def _load_photo(path: str | None, demo: str = "photo") -> np.ndarray:
@@ -245,7 +250,8 @@ def _model_name(args: argparse.Namespace) -> str:
 
 def _stated_body(args: argparse.Namespace) -> BodyStatement:
     """What ``--sex`` and the measurement flags state, checked before the model loads (a
-    usage error names the flag)."""
+    usage error names the flag; ``--turn-around`` is checked here too: it needs the
+    keypoint evidence, as a stated body does)."""
     from hkpd.body_flags import stated_body
     from hkpd.explorer.body_settings import BodyStatement
 
@@ -253,6 +259,8 @@ def _stated_body(args: argparse.Namespace) -> BodyStatement:
         stated = BodyStatement.from_stated(stated_body(args))
     except ValueError as error:
         raise SystemExit(f"hkpd-explore: {error}") from None
+    if args.turn_around and args.no_evidence:
+        raise SystemExit("hkpd-explore: --turn-around refits the keypoints: drop --no-evidence")
     if not stated.empty and args.no_evidence:
         raise SystemExit(
             "hkpd-explore: --sex and the measurement flags condition the shape, which needs "

@@ -56,6 +56,7 @@ def scene_from_arguments(
         seed=args.seed,
         model=args.model,
         compare=None if args.compare is None else _compare_text(args.compare),
+        turned_around=bool(getattr(args, "turn_around", False)),
     )
 
 

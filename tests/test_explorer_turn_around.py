@@ -134,3 +134,14 @@ def _png(image: np.ndarray) -> bytes:
     buffer = io.BytesIO()
     Image.fromarray(image).save(buffer, format="PNG")
     return buffer.getvalue()
+
+
+def test_the_command_line_saves_a_turned_scene_and_refuses_it_without_evidence(tmp_path) -> None:
+    from hkpd.explorer import cli
+
+    path = tmp_path / "turned.json"
+    common = ["--demo", "synthetic", "--provider", "test_explorer_double:OcclusionAwareDouble"]
+    assert cli.main([*common, "--turn-around", "--save-scene", str(path)]) == 0
+    assert json.loads(path.read_text())["turned_around"] is True
+    with pytest.raises(SystemExit, match="--turn-around refits the keypoints"):
+        cli.main([*common, "--turn-around", "--no-evidence", "--save-scene", str(path)])
