@@ -233,13 +233,19 @@ def test_the_networks_own_posterior_has_no_sexes_but_measurements(runs):
 
 
 def test_the_overview_footer_has_a_line_about_the_body(runs):
-    image = np.asarray(Image.open(runs["root"] / "auto" / "person" / "overview.png"))
+    folder = runs["root"] / "auto" / "person"
+    image = np.asarray(Image.open(folder / "overview.png"))
+    quality = json.loads((folder / "summary.json").read_text())["quality"]
+    warned = quality["score"] < 0.5 or bool(quality["flags"])  # a third line, in red
     # 480 px panels, a 30 px title row and two 26 px footer rows (one without the body line).
-    assert image.shape[0] == 480 + 30 + 2 * 26
+    assert image.shape[0] == 480 + 30 + (3 if warned else 2) * 26
     dark = np.abs(image.astype(int) - np.asarray(BACKGROUND)).max(-1) > 120
     right = slice(image.shape[1] // 2, None)
     assert dark[510:536, right].sum() > 100  # the body line
     assert dark[536:562, right].sum() > 100  # the uncertainty and run line
+    if warned:
+        red = (image[562:588, right, 0] > 150) & (image[562:588, right, 1] < 90)
+        assert red.sum() > 50  # the quality warning
 
 
 @pytest.mark.parametrize(
