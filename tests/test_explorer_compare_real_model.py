@@ -15,7 +15,6 @@ from hkpd.prediction import Predictor, load_image
 @pytest.mark.slow
 @pytest.mark.parametrize("boxes", [None, [(377.0, 255.0, 473.0, 290.0)]])
 def test_the_fit_s_network_reading_is_the_network_only_prediction(boxes) -> None:
-    torch.set_num_threads(2)
     try:
         predictor = Predictor.from_pretrained(device="cpu")
     except FileNotFoundError as error:
