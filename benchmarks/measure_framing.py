@@ -1,12 +1,14 @@
 """How much of the explorer's window its views fill: a headless Chromium screenshot of the live
 app at 1400 x 900, and the share of the canvas left of the control panel that is not
-background, with the rows and columns the drawings span.
+background, with the rows and columns the drawings span, and how tall the most likely body is
+drawn (its vertices projected through the browser's camera: pixels, and share of the height).
 
 Runs the app in-process on the demo photo with the test double of the predictor
 (``tests/test_explorer_double.py``), or the shipped model with ``--real``. Needs playwright and
 Debian's chromium (/usr/bin/chromium), as the browser tests do.
 
-Usage: python benchmarks/measure_framing.py [--real] [--out shot.png] [--width 1400 --height 900]
+Usage: python benchmarks/measure_framing.py [--real] [--compare] [--out shot.png]
+[--width 1400 --height 900] [--explorer-from OLD_TREE/explorer]
 """
 
 from __future__ import annotations
@@ -52,8 +54,20 @@ def filled_share(shot: np.ndarray, panel_px: int) -> dict[str, float]:
     }
 
 
-def screenshot(app, width: int, height: int) -> np.ndarray:
-    """The page at ``width`` x ``height`` once the first view is drawn and the camera rests."""
+def body_height_px(app, page) -> float:
+    """Pixels between the most likely body's highest and lowest vertices on the canvas (the
+    body's node stands at the world origin, turned a half turn about x)."""
+    from test_explorer_e2e import world_to_canvas
+
+    vertices = np.asarray(app.view.mode_vertices, dtype=np.float64)
+    world = vertices * np.array([1.0, -1.0, -1.0])
+    rows = world_to_canvas(app, world, page)[:, 1]
+    return float(rows.max() - rows.min())
+
+
+def screenshot(app, width: int, height: int) -> tuple[np.ndarray, float]:
+    """The page at ``width`` x ``height`` once the first view is drawn and the camera rests,
+    and the most likely body's drawn height in pixels."""
     import playwright.sync_api as playwright_api
     from test_explorer_e2e import CANVAS_SHOWN, camera_settled, launch_chromium
 
@@ -70,8 +84,9 @@ def screenshot(app, width: int, height: int) -> np.ndarray:
         # Notifications ("Software WebGL rendering detected") are not the framing's.
         page.add_style_tag(content=".mantine-Notifications-root { display: none !important; }")
         shot = stable_screenshot(page)
+        body_px = body_height_px(app, page)
         browser.close()
-    return shot
+    return shot, body_px
 
 
 def stable_screenshot(page, timeout_s: float = 30.0) -> np.ndarray:
@@ -94,6 +109,9 @@ def main() -> None:
     parser.add_argument("--width", type=int, default=1400)
     parser.add_argument("--height", type=int, default=900)
     parser.add_argument("--out", default=None, help="also save the screenshot here")
+    parser.add_argument(
+        "--compare", action="store_true", help="with B's columns (B: without the boxes)"
+    )
     parser.add_argument(
         "--explorer-from", default=None, metavar="DIR",
         help="import hkpd.explorer from DIR (an older tree, e.g. from git archive) for a "
@@ -119,7 +137,11 @@ def main() -> None:
         image = provider.scene.image
     app = ExplorerApp(provider, image, port=0, num_samples=100, num_displayed=10)
     try:
-        shot = screenshot(app, args.width, args.height)
+        if args.compare:
+            app.wait_idle(300)
+            app.panels.compare.menu.value = "B: without the boxes"  # what a click does
+            app.wait_idle(300)
+        shot, body_px = screenshot(app, args.width, args.height)
     finally:
         app.stop()
     if args.out:
@@ -127,11 +149,13 @@ def main() -> None:
     share = filled_share(shot, PANEL_WIDTH_PX)
     load = os.getloadavg()[0]
     model = "shipped model" if args.real else "test double"
+    model += " + compare" if args.compare else ""
     print(f"{platform.node()} · {os.cpu_count()} CPUs · load {load:.1f} · "
           f"{args.width} x {args.height} · {model}")  # fmt: skip
-    print("| drawn pixels | height spanned | width spanned |")
-    print("|---:|---:|---:|")
-    print(f"| {share['pixels']:.1%} | {share['height']:.1%} | {share['width']:.1%} |")
+    print("| drawn pixels | height spanned | width spanned | body height px (share) |")
+    print("|---:|---:|---:|---:|")
+    print(f"| {share['pixels']:.1%} | {share['height']:.1%} | {share['width']:.1%} "
+          f"| {body_px:.0f} ({body_px / args.height:.1%}) |")  # fmt: skip
 
 
 if __name__ == "__main__":

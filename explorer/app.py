@@ -45,6 +45,7 @@ from hkpd.explorer.framing import (
     framing,
 )
 from hkpd.explorer.html_page import SceneCaption, describe_scene, scene_page
+from hkpd.explorer.layout import ColumnLayout, column_layout
 from hkpd.explorer.notices import NOTICES
 from hkpd.explorer.panels import build_panels
 from hkpd.explorer.panels.same_person import ONLY_CURRENT_PHOTO
@@ -602,10 +603,17 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         for each in clients:
             self._notify(each, "No person found", advice.replace("**", ""), error=True)
 
-    def _place_photo(self, image: np.ndarray, placement: PhotoPlacement, token: int) -> None:
-        """Draw photo ``token`` at ``placement`` and frame it; its people are listed once, in
-        the ``"people"`` lane after :data:`PEOPLE_SEARCH_DELAY_S` (after the first view is
-        sent: the person search reads the photo 10 times)."""
+    def _place_photo(
+        self, image: np.ndarray, placement: PhotoPlacement, token: int,
+        layout: ColumnLayout | None = None,
+    ) -> None:  # fmt: skip
+        """Draw photo ``token`` at ``placement`` (the columns at ``layout``; None: where they
+        are) and frame it; its people are listed once, in the ``"people"`` lane after
+        :data:`PEOPLE_SEARCH_DELAY_S` (after the first view is sent: the person search reads
+        the photo 10 times)."""
+        if layout is not None:
+            self.scene.set_layout(layout)
+            self.compare_columns.set_layout(layout)
         self.scene.place_photo(image, placement)
         self.key.show(placement, self.scene.heatmap.kind)
         self.scene.show_titles(max(placement.centre[1] + placement.height_m / 2, 1.0) + 0.08)
@@ -676,7 +684,9 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             self.baselines.record(key, result.posterior)
         posterior = result.posterior
         if new_photo or plain:
-            self._place_photo(image, photo_placement(result, image.shape[1], image.shape[0]), token)
+            layout = column_layout(result)  # the columns spaced by this person's reach
+            placement = photo_placement(result, image.shape[1], image.shape[0], layout.photo_gap)
+            self._place_photo(image, placement, token, layout)
             self.scene.show_person_box(self.state.snapshot().person_box)
         self.scene.show_occluders(self.state.snapshot().occluders)
         warning = weak_keypoints_warning(posterior)
@@ -869,6 +879,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         position, look_at = framing(
             placement, ASSUMED_ASPECT, combined=self.scene.combined_shown,
             compare=self.compare_columns.shown, reach=body_reach(self.result),
+            layout=self.scene.layout,
         )  # fmt: skip
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
@@ -894,7 +905,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
                     time.sleep(0.05)
         position, look_at = framing(
             placement, aspect, float(np.clip(free, 0.5, 1.0)), self.scene.combined_shown,
-            self.compare_columns.shown, body_reach(self.result),
+            self.compare_columns.shown, body_reach(self.result), self.scene.layout,
         )  # fmt: skip
         client.camera.position = position
         client.camera.look_at = look_at
@@ -915,8 +926,11 @@ def _baseline_key(token: int, person_box: Box | None, snapshot: StateSnapshot) -
     )  # fmt: skip
 
 
-def photo_placement(result: PredictionResult, width: int, height: int) -> PhotoPlacement:
-    """Size and place the photo so that the person in it stands as tall as the mode body.
+def photo_placement(
+    result: PredictionResult, width: int, height: int, gap: float = PHOTO_GAP
+) -> PhotoPlacement:
+    """Size and place the photo so that the person in it stands as tall as the mode body, its
+    right edge ``gap`` metres left of the body's centre.
 
     The photo's scale is the mode's 3D keypoint height over its 2D keypoint height (clamped to
     keep odd predictions from making a tiny or huge photo); the hips line up with the body's.
@@ -932,7 +946,7 @@ def photo_placement(result: PredictionResult, width: int, height: int) -> PhotoP
     hips3d = points3d[11:13].mean(0)
     centre_y = -hips3d[1] + (hips2d[1] - height / 2) * metres_per_pixel
     width_m = height_m * width / height
-    centre_x = -(PHOTO_GAP + width_m / 2)
+    centre_x = -(gap + width_m / 2)
     return PhotoPlacement(width, height, (centre_x, float(centre_y), 0.0), height_m)
 
 

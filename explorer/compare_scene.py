@@ -14,12 +14,11 @@ import numpy as np
 import viser
 
 from hkpd.explorer.colour_map import HeatmapScale, change_legend_image
+from hkpd.explorer.layout import DEFAULT_LAYOUT, ColumnLayout
 from hkpd.explorer.photo_geometry import HALF_TURN_ABOUT_X
 from hkpd.explorer.posterior_view import PosteriorView
 from hkpd.explorer.scene import (
-    COMBINED_OFFSET,
     HEATMAP_BASE_COLOUR,
-    HEATMAP_OFFSET,
     LEGEND_HEIGHT,
     LEGEND_SIZE_M,
     LEGEND_Z,
@@ -28,10 +27,11 @@ from hkpd.explorer.scene import (
     SAMPLE_OPACITY,
 )
 
-COMPARE_BODY_OFFSET = COMBINED_OFFSET
-"""World x of B's most likely body (where a combined shape would stand: see docs)."""
-COMPARE_HEAT_OFFSET = COMPARE_BODY_OFFSET + HEATMAP_OFFSET
-"""World x of B's uncertainty body."""
+COMPARE_BODY_OFFSET = DEFAULT_LAYOUT.compare_body_x
+"""World x of B's most likely body in the default layout (where a combined shape would stand:
+see docs); :attr:`CompareColumns.layout` holds the photo's own."""
+COMPARE_HEAT_OFFSET = DEFAULT_LAYOUT.compare_heat_x
+"""World x of B's uncertainty body in the default layout."""
 
 
 def compare_titles(label: str, kind: str) -> tuple[str, str]:
@@ -58,6 +58,20 @@ class CompareColumns:
         self._heat_vertices: np.ndarray | None = None
         """The mode vertices B's heatmap points were last placed at."""
         self.shown = False
+        self.layout = DEFAULT_LAYOUT
+        """Where B's columns stand (:meth:`set_layout`)."""
+
+    def set_layout(self, layout: ColumnLayout) -> None:
+        """Move B's columns (bodies, titles, colour bar) to ``layout``'s places."""
+        with self._lock, self.server.atomic():
+            self.layout = layout
+            places = {"body": layout.compare_body_x, "heat": layout.compare_heat_x,
+                      "title_body": layout.compare_body_x, "title_heat": layout.compare_heat_x,
+                      "legend": layout.compare_heat_x}  # fmt: skip
+            for name, x in places.items():
+                handle = self._nodes.get(name)
+                if handle is not None:
+                    handle.position = (x, float(handle.position[1]), float(handle.position[2]))
 
     def show(
         self,
@@ -74,7 +88,9 @@ class CompareColumns:
         scene = self.server.scene
         with self._lock, self.server.atomic():
             if not self.shown:
-                for name, x in (("body", COMPARE_BODY_OFFSET), ("heat", COMPARE_HEAT_OFFSET)):
+                places = (("body", self.layout.compare_body_x),
+                          ("heat", self.layout.compare_heat_x))  # fmt: skip
+                for name, x in places:
                     self._nodes[name] = scene.add_frame(
                         f"/compare_{name}", wxyz=HALF_TURN_ABOUT_X, position=(x, 0.0, 0.0),
                         show_axes=False,
@@ -116,8 +132,11 @@ class CompareColumns:
     def _titles(self, label: str, scale: HeatmapScale, top: float) -> None:
         body_title, heat_title = compare_titles(label, scale.kind)
         scene = self.server.scene
-        for name, text, x in (("title_body", body_title, COMPARE_BODY_OFFSET),
-                              ("title_heat", heat_title, COMPARE_HEAT_OFFSET)):  # fmt: skip
+        for name, text, x in (("title_body", body_title, self.layout.compare_body_x),
+                              ("title_heat", heat_title, self.layout.compare_heat_x)):  # fmt: skip
+            # Two lines ("B (label):" over the column's title), so that neighbouring titles
+            # do not run into each other when the columns stand close.
+            text = text.replace("): ", "):\n", 1)
             self._nodes[name] = scene.add_label(
                 f"/titles/compare_{name}", text, position=(x, top, 0.0), font_screen_scale=1.15,
                 anchor="bottom-center",
@@ -129,7 +148,7 @@ class CompareColumns:
         )
         self._nodes["legend"] = scene.add_image(
             "/compare_legend", legend, *LEGEND_SIZE_M, format="png", wxyz=HALF_TURN_ABOUT_X,
-            position=(COMPARE_HEAT_OFFSET, LEGEND_HEIGHT, LEGEND_Z), cast_shadow=False,
+            position=(self.layout.compare_heat_x, LEGEND_HEIGHT, LEGEND_Z), cast_shadow=False,
             receive_shadow=False,
         )  # fmt: skip
 

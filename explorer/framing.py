@@ -5,19 +5,25 @@ The drawings are a row (photo, most likely body + samples, uncertainty body; opt
 combined-shape body and the compare columns) that is wider than the canvas left of the panel
 is tall, so the framing is usually limited by width: it fits the row's real right end (the
 uncertainty body's reach, from the mode's keypoints, instead of a fixed arm span) and puts the
-key under the photo, in the band below the bodies that was empty.
+key under the photo, in the band below the bodies that was empty. The columns themselves are
+spaced by the person's reach (:mod:`hkpd.explorer.layout`), which narrows the row.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from hkpd.explorer.canvas_key import key_rect
-from hkpd.explorer.compare_scene import COMPARE_HEAT_OFFSET
+from hkpd.explorer.layout import (
+    BODY_HALF_SPAN_M,
+    DEFAULT_LAYOUT,
+    HAND_ROOM_M,
+    MIN_REACH_M,
+    ColumnLayout,
+    body_extent,
+)
 from hkpd.explorer.photo_geometry import PhotoPlacement
-from hkpd.explorer.scene import COMBINED_OFFSET, HEATMAP_OFFSET, LEGEND_HEIGHT, LEGEND_SIZE_M
+from hkpd.explorer.scene import LEGEND_HEIGHT, LEGEND_SIZE_M
 
 CAMERA_FOV_DEG = 40.0
 ASSUMED_ASPECT = 1.6
@@ -27,13 +33,7 @@ FREE_CANVAS_FRACTION = 0.7
 its canvas size)."""
 PANEL_WIDTH_PX = 420
 """Width of viser's floating panel ("large" controls) plus its margin, CSS pixels."""
-BODY_HALF_SPAN_M = 0.95
-"""Most the framing leaves right of a body's centre (outstretched arms reach ~0.85 m), so its
-hand never goes under the panel; the combined-shape body (a T-pose) always gets it."""
-HAND_ROOM_M = 0.25
-"""Room beyond the wrist keypoint for the hand and the samples' spread."""
-MIN_REACH_M = 0.45
-"""Least room right of a body's centre (arms down: the shoulder and the hip)."""
+__all__ = ["BODY_HALF_SPAN_M", "HAND_ROOM_M", "MIN_REACH_M", "body_reach", "framing"]
 TITLE_ROOM_M = 0.25
 """Room above the photo's top (or 1 m) for the column titles."""
 MARGIN_M = 0.2
@@ -43,15 +43,9 @@ def body_reach(result: object) -> float:
     """Metres right of the body's centre its drawing reaches: the mode's rightmost keypoint
     plus :data:`HAND_ROOM_M`, within [:data:`MIN_REACH_M`, :data:`BODY_HALF_SPAN_M`];
     :data:`BODY_HALF_SPAN_M` when ``result`` (a ``PredictionResult``) is None or has no
-    keypoints (a custom provider's)."""
-    try:
-        points = result.posterior.mode().keypoints3d[0].double().cpu().numpy()  # type: ignore[attr-defined]
-    except (AttributeError, TypeError, IndexError, ValueError):
-        return BODY_HALF_SPAN_M
-    right = float(np.max(points[:, 0])) if points.size else math.inf
-    if not math.isfinite(right):
-        return BODY_HALF_SPAN_M
-    return float(np.clip(right + HAND_ROOM_M, MIN_REACH_M, BODY_HALF_SPAN_M))
+    keypoints (a custom provider's). The right half of :func:`~hkpd.explorer.layout.body_extent`;
+    the combined-shape body (a T-pose) always gets :data:`BODY_HALF_SPAN_M`."""
+    return body_extent(result)[1]
 
 
 def framing(
@@ -61,6 +55,7 @@ def framing(
     combined: bool = False,
     compare: bool = False,
     reach: float = BODY_HALF_SPAN_M,
+    layout: ColumnLayout = DEFAULT_LAYOUT,
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Camera ``(position, look_at)`` showing photo, key, bodies and colour bars left of the
     panel.
@@ -73,14 +68,15 @@ def framing(
         compare: also show the compare columns (B).
         reach: metres right of the uncertainty body's centre its drawing reaches
             (:func:`body_reach`).
+        layout: where the columns stand (the scene's :attr:`ExplorerScene.layout`).
     """
     key_x, key_y, key_width, key_height = key_rect(placement)
     left = min(placement.centre[0] - placement.width_m / 2, key_x - key_width / 2) - MARGIN_M
-    right = HEATMAP_OFFSET + max(reach, LEGEND_SIZE_M[0] / 2)
+    right = layout.heat_x + max(reach, LEGEND_SIZE_M[0] / 2)
     if combined:
-        right = COMBINED_OFFSET + BODY_HALF_SPAN_M
+        right = layout.combined_x + BODY_HALF_SPAN_M
     if compare:
-        right = max(right, COMPARE_HEAT_OFFSET + max(reach, LEGEND_SIZE_M[0] / 2))
+        right = max(right, layout.compare_heat_x + max(reach, LEGEND_SIZE_M[0] / 2))
     top = max(placement.centre[1] + placement.height_m / 2, 1.0) + TITLE_ROOM_M
     bar_bottom = LEGEND_HEIGHT - LEGEND_SIZE_M[1] / 2
     bottom = min(key_y - key_height / 2, bar_bottom) - MARGIN_M

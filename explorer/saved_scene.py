@@ -21,6 +21,7 @@ import rich.console
 
 from hkpd.explorer.app import ASSUMED_ASPECT, ExplorerApp, framing
 from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
+from hkpd.explorer.framing import body_reach
 from hkpd.explorer.html_page import iframe_html, write_page
 from hkpd.explorer.provider import Box, PosteriorProvider, PredictionResult
 from hkpd.explorer.scene_file import SceneFile
@@ -128,7 +129,7 @@ def render_scene_page(
         if app.scene.placement is not None:  # a page has no control panel to leave room for
             position, look_at = framing(
                 app.scene.placement, ASSUMED_ASPECT, 1.0, app.scene.combined_shown,
-                app.compare_columns.shown,
+                app.compare_columns.shown, body_reach(app.result), app.scene.layout,
             )  # fmt: skip
             app.server.initial_camera.position = position
             app.server.initial_camera.look_at = look_at

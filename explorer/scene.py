@@ -24,6 +24,7 @@ import viser
 
 from hkpd.coco_keypoints import COCO17_LIMBS
 from hkpd.explorer.colour_map import HeatmapScale
+from hkpd.explorer.layout import DEFAULT_LAYOUT, ColumnLayout
 from hkpd.explorer.photo_geometry import HALF_TURN_ABOUT_X, PhotoPlacement
 from hkpd.explorer.posterior_view import PosteriorView
 from hkpd.explorer.state import Occluder
@@ -40,13 +41,15 @@ HEATMAP_BASE_COLOUR = (70, 95, 165)
 AXIS_COLOURS = np.array([[230, 60, 60], [60, 180, 75], [60, 110, 230]], dtype=np.uint8)
 
 BODY_POSITION = (0.0, 0.0, 0.0)
-HEATMAP_OFFSET = 1.75
-"""Metres between the sample body and the heatmap body (an arm span, ~1.7 m, so that
-outstretched arms and their samples never overlap)."""
-COMBINED_OFFSET = HEATMAP_OFFSET + 1.9
+HEATMAP_OFFSET = DEFAULT_LAYOUT.heat_x
+"""Metres between the sample body and the heatmap body in the default layout (an arm span,
+~1.7 m, so that outstretched arms and their samples never overlap); a photo's own layout
+(:func:`hkpd.explorer.layout.column_layout`, :attr:`ExplorerScene.layout`) may be narrower."""
+COMBINED_OFFSET = DEFAULT_LAYOUT.combined_x
 """x of the combined-shape body (a T-pose arm span, ~1.7 m, right of the heatmap body)."""
-PHOTO_GAP = 0.9
-"""Metres between the photo's right edge and the body's centre (half an arm span)."""
+PHOTO_GAP = DEFAULT_LAYOUT.photo_gap
+"""Metres between the photo's right edge and the body's centre (half an arm span) in the
+default layout."""
 LEGEND_HEIGHT = -1.22
 """World height of the colour bar's centre."""
 LEGEND_SIZE_M = (1.4, 1.4 * 150 / 640)
@@ -59,9 +62,10 @@ FLOOR_DEPTH = 4.0
 """Metres the floor grid reaches back from the photo plane (z = 0) into the scene."""
 FLOOR_RIGHT = COMBINED_OFFSET + 1.2
 """World x of the floor's right edge (past the combined-shape body's hand)."""
-JOINT_LABEL_HEIGHT = LEGEND_HEIGHT + 0.05
-"""World height of the selected joint's concentration label, under the mode body (beside the
-joint it ran into the uncertainty body)."""
+JOINT_LABEL_HEIGHT = LEGEND_HEIGHT - LEGEND_SIZE_M[1] / 2 - 0.02
+"""World height of the top of the selected joint's concentration label, under the mode body
+(beside the joint it ran into the uncertainty body), and lower than the colour bar's bottom
+(level with the bar it ran into the bar when the columns stand close)."""
 OVERLAY_LIFT = -0.004
 """Local z of drawings on the photo (negative: towards the viewer)."""
 
@@ -110,6 +114,8 @@ class ExplorerScene:
         """World height of the column titles (the combined-shape body's title too)."""
         self.static = False
         """Titles for a saved page (nothing of the live app: no "shift+drag")."""
+        self.layout = DEFAULT_LAYOUT
+        """Where the columns stand (:meth:`set_layout`)."""
         server.scene.set_up_direction("+y")
         server.scene.world_axes.visible = False
         self.scene_body = server.scene.add_frame(
@@ -142,7 +148,7 @@ class ExplorerScene:
             titles = (
                 ("photo", photo, self.placement.centre[0]),
                 ("samples", "Most likely body + samples", BODY_POSITION[0]),
-                ("uncertainty", uncertainty, HEATMAP_OFFSET),
+                ("uncertainty", uncertainty, self.layout.heat_x),
             )
             self.titles_top = top
             for name, text, x in titles:
@@ -184,10 +190,25 @@ class ExplorerScene:
                 *LEGEND_SIZE_M,
                 format="png",
                 wxyz=HALF_TURN_ABOUT_X,
-                position=(HEATMAP_OFFSET, LEGEND_HEIGHT, LEGEND_Z),
+                position=(self.layout.heat_x, LEGEND_HEIGHT, LEGEND_Z),
                 cast_shadow=False,
                 receive_shadow=False,
             )
+
+    def set_layout(self, layout: ColumnLayout) -> None:
+        """Move the uncertainty and combined-shape columns (bodies, titles, colour bars) to
+        ``layout``'s places (world metres along x)."""
+        with self._lock, self.server.atomic():
+            self.layout = layout
+            self.scene_heat.position = (layout.heat_x, 0.0, 0.0)
+            self.scene_combined.position = (layout.combined_x, 0.0, 0.0)
+            nodes = self.server.scene._handle_from_node_name
+            for name, x in (("/titles/uncertainty", layout.heat_x), ("/legend", layout.heat_x),
+                            ("/combined_title", layout.combined_x),
+                            ("/combined_legend", layout.combined_x)):  # fmt: skip
+                handle = nodes.get(name)
+                if handle is not None:
+                    handle.position = (x, float(handle.position[1]), float(handle.position[2]))
 
     # ------------------------------------------------------------------ photo
     def place_photo(self, image: np.ndarray, placement: PhotoPlacement) -> None:
@@ -361,13 +382,14 @@ class ExplorerScene:
                     point_shape="circle", point_shading="flat",
                 ),
                 self.server.scene.add_label(
-                    "/combined_title", title, position=(COMBINED_OFFSET, self.titles_top, 0.0),
+                    "/combined_title", title,
+                    position=(self.layout.combined_x, self.titles_top, 0.0),
                     font_screen_scale=1.15, anchor="bottom-center",
                 ),
                 self.server.scene.add_image(
                     "/combined_legend", self.absolute_scale.legend(width=640, height=150),
                     *LEGEND_SIZE_M, format="png", wxyz=HALF_TURN_ABOUT_X,
-                    position=(COMBINED_OFFSET, LEGEND_HEIGHT, LEGEND_Z), cast_shadow=False,
+                    position=(self.layout.combined_x, LEGEND_HEIGHT, LEGEND_Z), cast_shadow=False,
                     receive_shadow=False,
                 ),
             ]  # fmt: skip

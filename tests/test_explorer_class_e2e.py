@@ -30,7 +30,6 @@ from hkpd.explorer.compare import CompareSetting
 from hkpd.explorer.progress import TITLE
 from hkpd.explorer.scene import (
     BODY_POSITION,
-    HEATMAP_OFFSET,
     JOINT_LABEL_HEIGHT,
     LEGEND_HEIGHT,
     LEGEND_SIZE_M,
@@ -195,7 +194,7 @@ def drawn_under_the_bodies(app, page) -> tuple[int, int]:
     counts = []
     for x, y, half_width, half_height in (
         (BODY_POSITION[0], JOINT_LABEL_HEIGHT - 0.05, 0.5, 0.05),
-        (HEATMAP_OFFSET, LEGEND_HEIGHT, LEGEND_SIZE_M[0] / 2, LEGEND_SIZE_M[1] / 2),
+        (app.scene.layout.heat_x, LEGEND_HEIGHT, LEGEND_SIZE_M[0] / 2, LEGEND_SIZE_M[1] / 2),
     ):
         corners = np.array([[x - half_width, y + half_height, LEGEND_Z],
                             [x + half_width, y - half_height, LEGEND_Z]])  # fmt: skip

@@ -112,7 +112,7 @@ def test_change_colouring_titles_follow_it(app) -> None:
         if name.startswith("/titles/")
     }
     assert labels["/titles/uncertainty"].startswith("Change: uncertainty ÷ no occluders")
-    assert labels["/titles/compare_title_heat"] == "B (without the boxes): uncertainty ÷ A's"
+    assert labels["/titles/compare_title_heat"] == "B (without the boxes):\nuncertainty ÷ A's"
     assert "coloured by B's spread ÷ A's" in app.page_caption().text()
     app.panels.samples.colouring.value = "Uncertainty, log scale (cm)"
     app.set_compare(None)
@@ -144,7 +144,7 @@ def test_a_slider_move_redraws_only_what_b_changed(app) -> None:
     assert nodes["title_heat"] is titles and nodes["points"] is points  # kept, not re-added
     app.panels.samples.colouring.value = "Change vs. no occluders, default concentrations (×)"
     assert app.wait_idle(60)
-    assert app.compare_columns._nodes["title_heat"].text == "B (network only): uncertainty ÷ A's"
+    assert app.compare_columns._nodes["title_heat"].text == "B (network only):\nuncertainty ÷ A's"
     app.panels.samples.colouring.value = "Uncertainty, log scale (cm)"
     app.sampling_changed(app.state.set_joint_exponent("left_elbow", 0.0))
     app.set_compare(None)

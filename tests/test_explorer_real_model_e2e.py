@@ -100,15 +100,16 @@ def test_shipped_model_on_the_shipped_photo(app, tmp_path):
 
         # No floor grid over the photo or across the colour bar (issue 42: white lines across
         # the photo's bottom and the bar's labels).
-        from hkpd.explorer.scene import HEATMAP_OFFSET, LEGEND_HEIGHT, LEGEND_SIZE_M, LEGEND_Z
+        from hkpd.explorer.scene import LEGEND_HEIGHT, LEGEND_SIZE_M, LEGEND_Z
 
         placement = app.scene.placement
         photo_rect = photo_to_canvas(
             app, np.array([[0.0, 0.0], [placement.width_px, placement.height_px]]), page
         )
         half_w, half_h = LEGEND_SIZE_M[0] / 2, LEGEND_SIZE_M[1] / 2
-        bar = np.array([[HEATMAP_OFFSET - half_w, LEGEND_HEIGHT + half_h, LEGEND_Z],
-                        [HEATMAP_OFFSET + half_w, LEGEND_HEIGHT - half_h, LEGEND_Z]])  # fmt: skip
+        heat_x = app.scene.layout.heat_x  # the columns are spaced by the person's reach
+        bar = np.array([[heat_x - half_w, LEGEND_HEIGHT + half_h, LEGEND_Z],
+                        [heat_x + half_w, LEGEND_HEIGHT - half_h, LEGEND_Z]])  # fmt: skip
         over_photo, over_bar = floor_pixels_over(
             app, page, [photo_rect, world_to_canvas(app, bar, page)]
         )

@@ -67,7 +67,7 @@ def test_an_exported_compare_page_in_change_colouring_says_nothing_of_the_live_a
     seen = label_texts(strings)
     assert "Photo" in strings  # the static title, not "Photo · shift+drag to hide a part"
     assert any(s.startswith("Change: uncertainty ÷") for s in seen), seen
-    assert "B (without the boxes): uncertainty ÷ A's" in seen
+    assert "B (without the boxes):\nuncertainty ÷ A's" in seen  # two lines: see compare_scene
     assert not any(s.startswith("Uncertainty over samples") for s in seen)
     for text in [caption, *seen]:
         assert not LIVE_APP_WORDS.search(text), (LIVE_APP_WORDS.search(text), text)
