@@ -45,6 +45,10 @@ def test_turning_an_evidence_posterior_refits_and_turns_back(predictor) -> None:
     shown = posterior.evidence.bool()
     error = (turned.mode().keypoints2d[0][order] - posterior.keypoints).norm(dim=-1)[shown]
     assert float(error.median()) < 25  # photo pixels: the swapped labels are explained
+    # its quality compares the turned body's left keypoints with the detector's right ones
+    assert "keypoints_not_fitted" not in turned.quality.flags
+    assert "turned_copy" in turned.quality.flags
+    assert turned.quality.signals["misfit"] < 2 * posterior.quality.signals["misfit"] + 0.02
     assert turned.turned_around() is posterior
     with pytest.raises(ValueError, match="cannot be turned around"):
         predictor.predict(PHOTO, evidence=False).turned_around()

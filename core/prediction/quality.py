@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from hkpd.coco_keypoints import COCO17_NAMES
+from hkpd.coco_keypoints import COCO17_MIRROR_ORDER, COCO17_NAMES
 from hkpd.proxy import CONFIDENCE_THRESHOLD, CROP_MARGIN
 
 if TYPE_CHECKING:
@@ -207,6 +207,8 @@ def reading_signals(posterior: BodyPosterior) -> dict[str, float]:
     keypoints = _detector_keypoints(posterior)
     person_px = _person_px(posterior, keypoints, confidences)
     mode_points = posterior.mode().keypoints2d[0].detach().cpu().double().numpy()  # (17, 2)
+    if posterior.turned:  # the turned body's left keypoints explain the detector's right ones
+        mode_points = mode_points[list(COCO17_MIRROR_ORDER)]
     return {
         "confident_share": float(np.mean(confidences >= CONFIDENCE_THRESHOLD)),
         "mean_confidence": float(confidences.mean()),
