@@ -98,20 +98,23 @@ def _angle_cdf(singular_values: tuple[float, float, float]) -> tuple[np.ndarray,
 
     Density w.r.t. angle: (1 - cos t) exp(cos t sum(S)) * mean over axes n of
     exp((1 - cos t) sum_i s_i n_i^2), the axis mean by Gauss-Legendre x trapezoid quadrature.
+    The grid (2001 angles, 48 x 96 axes) is within 4.1e-5 of a 10x finer one (20001 angles,
+    96 x 192 axes, 100x the time) on every case tested, 150x below the KS test's critical
+    distance at p = 1e-3 for 100,000 samples (0.0062), so it cannot hide a wrong sampler.
     """
     s = np.asarray(singular_values, dtype=np.float64)
-    theta = np.linspace(0.0, np.pi, 20001)
-    z, z_weights = np.polynomial.legendre.leggauss(96)
-    beta = np.linspace(0.0, 2 * np.pi, 192, endpoint=False)
+    theta = np.linspace(0.0, np.pi, 2001)
+    z, z_weights = np.polynomial.legendre.leggauss(48)
+    beta = np.linspace(0.0, 2 * np.pi, 96, endpoint=False)
     radius = np.sqrt(1 - z**2)
     n_sq = np.stack(
         [
             (radius[:, None] * np.cos(beta)) ** 2,
             (radius[:, None] * np.sin(beta)) ** 2,
-            np.broadcast_to(z[:, None] ** 2, (96, 192)),
+            np.broadcast_to(z[:, None] ** 2, (48, 96)),
         ]
-    )  # (3, 96, 192)
-    weighted_axes = np.tensordot(s, n_sq, axes=1)  # sum_i s_i n_i^2, (96, 192)
+    )  # (3, 48, 96)
+    weighted_axes = np.tensordot(s, n_sq, axes=1)  # sum_i s_i n_i^2, (48, 96)
     one_minus_cos = 1 - np.cos(theta)
     exponent = (
         one_minus_cos[:, None, None] * weighted_axes + (np.cos(theta) * s.sum())[:, None, None]
