@@ -7,6 +7,9 @@ roles of the singular values permuted), plus closed forms for special cases.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import mpmath as mp
 
 
@@ -70,3 +73,32 @@ def rank_one_log_c(s: float) -> mp.mpf:
     with mp.workdps(30):
         x = mp.mpf(s)
         return mp.log(mp.sinh(x) / x) if x != 0 else mp.mpf(0)
+
+
+GRID_REFERENCE = Path(__file__).parent / "data" / "normalizer_reference.json"
+""":func:`reference_log_c` on test_normalizer.py's grid, written by running this module."""
+
+
+def write_grid_reference(grid: list[tuple[float, float, float]], path: Path) -> None:
+    """Store ``reference_log_c`` at every point of ``grid`` (30 significant digits, as text).
+
+    Computing the grid takes ~1 minute of mpmath quadrature; the tests read the file and
+    recompute a few of its points to show that it still is what this function writes.
+    """
+    rows = [[*point, mp.nstr(reference_log_c(*point), 30)] for point in grid]
+    lines = ",\n".join(f"  {json.dumps(row)}" for row in rows)
+    path.write_text(f'{{"digits": 30, "log_c": [\n{lines}\n]}}\n')
+
+
+def read_grid_reference(path: Path = GRID_REFERENCE) -> dict[tuple[float, float, float], mp.mpf]:
+    """The stored grid: ``{(s1, s2, s3): log c}``."""
+    with mp.workdps(30):
+        rows = json.loads(path.read_text())["log_c"]
+        return {(s1, s2, s3): mp.mpf(value) for s1, s2, s3, value in rows}
+
+
+if __name__ == "__main__":  # python tests/matrix_fisher_reference.py: rewrite the stored grid
+    from test_normalizer import GRID
+
+    write_grid_reference(GRID, GRID_REFERENCE)
+    print(f"wrote {GRID_REFERENCE} ({len(GRID)} points)")

@@ -10,6 +10,7 @@ import torch
 from matrix_fisher_reference import (
     isotropic_log_c,
     rank_one_log_c,
+    read_grid_reference,
     reference_expected_diagonal,
     reference_log_c,
 )
@@ -42,15 +43,22 @@ def relative_error(value: float, reference: mp.mpf) -> float:
     return float(abs((mp.mpf(value) - reference) / reference))
 
 
-@pytest.mark.slow
 def test_log_normalizer_matches_reference_over_grid() -> None:
+    # The mpmath reference over the grid is stored (a minute of quadrature; see the next test).
+    stored = read_grid_reference()
+    assert list(stored) == GRID, "the grid changed: run python tests/matrix_fisher_reference.py"
     S = torch.tensor(GRID, dtype=torch.float64)
     log_c = matrix_fisher_log_normalizer(S)
-    errors = [
-        relative_error(float(v), reference_log_c(*s)) for v, s in zip(log_c, GRID, strict=True)
-    ]
+    errors = [relative_error(float(v), stored[s]) for v, s in zip(log_c, GRID, strict=True)]
     worst = max(range(len(GRID)), key=errors.__getitem__)
     assert errors[worst] <= 1e-6, f"relative error {errors[worst]:.2e} at S={GRID[worst]}"
+
+
+@pytest.mark.parametrize("index", [22, 61, 98])  # magnitudes 9e-3, 4 and 1e4
+def test_the_stored_grid_reference_is_the_reference(index: int) -> None:
+    point = GRID[index]
+    with mp.workdps(30):
+        assert abs(read_grid_reference()[point] / reference_log_c(*point) - 1) < 1e-20
 
 
 def test_zero_concentration_is_uniform() -> None:
