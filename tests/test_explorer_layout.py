@@ -69,7 +69,7 @@ def test_arms_down_narrows_the_row_and_draws_the_bodies_larger() -> None:
     assert column_layout(posed(-0.9, 0.9)) == DEFAULT_LAYOUT  # never wider than the default
     down = column_layout(posed(-0.3, 0.35))
     assert down.step == pytest.approx(0.3 + 0.35 + 2 * HAND_ROOM_M + COLUMN_GAP_M)
-    assert down.photo_gap == pytest.approx(0.3 + HAND_ROOM_M + COLUMN_GAP_M / 2)
+    assert down.photo_gap == pytest.approx(0.3 + HAND_ROOM_M + COLUMN_GAP_M)
     # The demo photo's size (portrait), its right edge at each layout's photo gap.
     placements = {
         layout: PhotoPlacement(384, 512, (-(layout.photo_gap + 0.89), 0.1, 0.0), 2.37)
