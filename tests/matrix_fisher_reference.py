@@ -76,18 +76,27 @@ def rank_one_log_c(s: float) -> mp.mpf:
 
 
 GRID_REFERENCE = Path(__file__).parent / "data" / "normalizer_reference.json"
-""":func:`reference_log_c` on test_normalizer.py's grid, written by running this module."""
+"""The references on test_normalizer.py's points, written by running this module."""
 
 
-def write_grid_reference(grid: list[tuple[float, float, float]], path: Path) -> None:
-    """Store ``reference_log_c`` at every point of ``grid`` (30 significant digits, as text).
+def write_grid_reference(
+    grid: list[tuple[float, float, float]],
+    gradient_points: list[tuple[float, float, float]],
+    path: Path,
+) -> None:
+    """Store ``reference_log_c`` at every point of ``grid`` (30 significant digits, as text)
+    and ``reference_expected_diagonal`` at every point of ``gradient_points``.
 
-    Computing the grid takes ~1 minute of mpmath quadrature; the tests read the file and
-    recompute a few of its points to show that it still is what this function writes.
-    """
+    Computing them takes ~1.5 minutes of mpmath quadrature; the tests read the file and
+    recompute a few of its points to show that it still is what these functions give.
+    """  # fmt: skip
     rows = [[*point, mp.nstr(reference_log_c(*point), 30)] for point in grid]
+    diagonals = [[*point, *reference_expected_diagonal(*point)] for point in gradient_points]
     lines = ",\n".join(f"  {json.dumps(row)}" for row in rows)
-    path.write_text(f'{{"digits": 30, "log_c": [\n{lines}\n]}}\n')
+    gradient_lines = ",\n".join(f"  {json.dumps(row)}" for row in diagonals)
+    path.write_text(
+        f'{{"digits": 30, "log_c": [\n{lines}\n], "expected_diagonal": [\n{gradient_lines}\n]}}\n'
+    )
 
 
 def read_grid_reference(path: Path = GRID_REFERENCE) -> dict[tuple[float, float, float], mp.mpf]:
@@ -97,8 +106,16 @@ def read_grid_reference(path: Path = GRID_REFERENCE) -> dict[tuple[float, float,
         return {(s1, s2, s3): mp.mpf(value) for s1, s2, s3, value in rows}
 
 
-if __name__ == "__main__":  # python tests/matrix_fisher_reference.py: rewrite the stored grid
-    from test_normalizer import GRID
+def read_gradient_reference(
+    path: Path = GRID_REFERENCE,
+) -> dict[tuple[float, float, float], list[float]]:
+    """The stored ``d log c / d s_i``: ``{(s1, s2, s3): [three floats]}``."""
+    rows = json.loads(path.read_text())["expected_diagonal"]
+    return {tuple(row[:3]): list(row[3:]) for row in rows}
 
-    write_grid_reference(GRID, GRID_REFERENCE)
-    print(f"wrote {GRID_REFERENCE} ({len(GRID)} points)")
+
+if __name__ == "__main__":  # python tests/matrix_fisher_reference.py: rewrite the stored grid
+    from test_normalizer import GRADIENT_POINTS, GRID
+
+    write_grid_reference(GRID, GRADIENT_POINTS, GRID_REFERENCE)
+    print(f"wrote {GRID_REFERENCE} ({len(GRID)} + {len(GRADIENT_POINTS)} points)")
