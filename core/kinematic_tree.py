@@ -177,3 +177,16 @@ def compose_global_rotations(
             global_rot[..., parent_index, :, :] @ relative[..., index, :, :]
         )
     return global_rot
+
+
+def rotation_angle(first: torch.Tensor, second: torch.Tensor) -> torch.Tensor:
+    """The angle of the rotation taking ``first`` to ``second``, radians in [0, pi].
+
+    Args:
+        first, second: ``(..., 3, 3)`` rotation matrices (broadcastable).
+
+    Returns:
+        ``(...)`` ``arccos((trace(first^T second) - 1) / 2)``, the cosine clipped to [-1, 1].
+    """
+    trace = (first.transpose(-1, -2) @ second).diagonal(dim1=-2, dim2=-1).sum(-1)
+    return torch.arccos(((trace - 1) / 2).clamp(-1.0, 1.0))

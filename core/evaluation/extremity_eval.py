@@ -44,7 +44,7 @@ from hkpd.conditioning import EvidenceConfig, KeypointEvidence, condition_on_key
 from hkpd.conditioning.landmark_term import LandmarkConfig, LandmarkEvidence, LandmarkTerm
 from hkpd.distributions import BodyDistribution
 from hkpd.evaluation.test_set import fixed_batches, network_and_generator, stored_evidence_settings
-from hkpd.kinematic_tree import BODY_JOINT_NAMES
+from hkpd.kinematic_tree import BODY_JOINT_NAMES, rotation_angle
 from hkpd.prediction.predictor import float64_body
 from hkpd.prediction.readings import ReadingConfig
 from hkpd.prediction.readings.proxy_reader import ProxyReader
@@ -118,8 +118,7 @@ def part_vertices(body: BodyModel) -> dict[tuple[str, str], torch.Tensor]:
 
 def rotation_angle_deg(first: torch.Tensor, second: torch.Tensor) -> torch.Tensor:
     """``(..., 3, 3)`` x2 rotations -> ``(...)`` the angle between them, degrees."""
-    trace = (first.transpose(-1, -2) @ second).diagonal(dim1=-2, dim2=-1).sum(-1)
-    return torch.rad2deg(torch.acos(((trace - 1) / 2).clamp(-1.0, 1.0)))
+    return torch.rad2deg(rotation_angle(first, second))
 
 
 def _centred(body: BodyModel, betas, pose, orient) -> tuple[torch.Tensor, torch.Tensor]:

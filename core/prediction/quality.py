@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from hkpd.coco_keypoints import COCO17_MIRROR_ORDER, COCO17_NAMES
+from hkpd.kinematic_tree import rotation_angle
 from hkpd.proxy import CONFIDENCE_THRESHOLD, CROP_MARGIN
 
 if TYPE_CHECKING:
@@ -360,9 +361,7 @@ def _prior_shift(posterior: BodyPosterior) -> float:
         (posterior.prior.pose_distribution.mode[0], posterior.prior.global_orient[None])
     )
     after = torch.cat((posterior.pose_distribution.mode[0], posterior.global_orient[None]))
-    relative = before.double().transpose(-1, -2) @ after.double()
-    cosine = ((relative.diagonal(dim1=-2, dim2=-1).sum(-1) - 1) / 2).clamp(-1.0, 1.0)
-    return float(torch.arccos(cosine).mean())
+    return float(rotation_angle(before.double(), after.double()).mean())
 
 
 def _mask_share(posterior: BodyPosterior) -> float:
