@@ -31,6 +31,7 @@ from tqdm import tqdm
 from hkpd.evaluation.quality_metrics import quality_table
 from hkpd.evaluation.real_photos import AnnotatedPerson, load_coco_people
 from hkpd.poses import pose_source
+from hkpd.prediction.detection.boxes import box_iou
 from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError, people_by_size
 from hkpd.prediction.image_input import ImageInputError, load_image
 from hkpd.prediction.quality import SIGNAL_NAMES
@@ -184,14 +185,6 @@ def _best_match(box, annotated: list[AnnotatedPerson], taken: set[int]) -> int |
         if index not in taken and overlap >= best_iou:
             best, best_iou = index, overlap
     return best
-
-
-def box_iou(first: np.ndarray, second: np.ndarray) -> float:
-    """Intersection over union of two ``(x0, y0, x1, y1)`` boxes."""
-    low, high = np.maximum(first[:2], second[:2]), np.minimum(first[2:], second[2:])
-    inter = float(np.prod(np.clip(high - low, 0, None)))
-    area = float(np.prod(first[2:] - first[:2]) + np.prod(second[2:] - second[:2]))
-    return inter / max(area - inter, 1e-9)
 
 
 def coco_quality_report(predictor, coco_dir: Path, split: str | None = None) -> str:
