@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from hkpd.evaluation.quality_metrics import auroc
 from hkpd.evaluation.real_photos import load_coco_people
 from hkpd.prediction import NoPersonFoundError, Predictor
 
@@ -42,14 +43,6 @@ def signals(posterior) -> list[float]:
         (fit.cost / shown) if fit is not None and fit.conditioned is not None else 10.0,
         float(posterior.mirror_read),
     ]  # fmt: skip
-
-
-def auroc(score: np.ndarray, off: np.ndarray) -> float:
-    """How often an off reading scores below a good one (ties count half)."""
-    bad, good = score[off], score[~off]
-    if len(bad) == 0 or len(good) == 0:
-        return float("nan")
-    return float(((bad[:, None] < good[None]) + 0.5 * (bad[:, None] == good[None])).mean())
 
 
 def logistic(features: np.ndarray, good: np.ndarray, penalty: float = 1.0) -> np.ndarray:
