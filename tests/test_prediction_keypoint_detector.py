@@ -227,8 +227,10 @@ def test_a_box_the_detector_finds_nobody_in_is_still_read_by_the_landmark_model(
     with pytest.raises(NoPersonFoundError):
         detector.detect(marker_photo())
     found = detector.detect(marker_photo(), bbox=(500.0, 50.0, 700.0, 250.0))
-    (region,) = runner.regions
+    region, again = runner.regions  # the reading, then the landmark-spread re-read
     assert region.angle == 0.0
+    np.testing.assert_allclose(again.centre - region.centre, [0.08 * 250.0, 0.06 * 250.0])
+    assert found.landmark_spread is not None
     # Centred on the box (its padded search region is (480, 30)-(720, 270) in pixel edges),
     # 1.25 x its longer side.
     np.testing.assert_allclose(found.keypoints, np.tile([599.5, 149.5], (17, 1)), atol=1e-9)

@@ -22,7 +22,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -45,6 +45,7 @@ from hkpd.prediction.detection.boxes import (
     tile_bounds,
     validated_box,
 )
+from hkpd.prediction.detection.landmark_spread import landmark_spread
 from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.detection.warp import Region
 from hkpd.prediction.image_input import LoadedImage, load_image
@@ -124,6 +125,10 @@ class KeypointDetection:
             detection made by hand from 17 keypoints).
         extremity_confidences: ``(10,)`` float64 in [0, 1], their visibilities; None with
             ``extremities``.
+        landmark_spread: how far the keypoints move, as a fraction of the person's size, when
+            the landmark model reads the person again from a slightly moved crop
+            (:func:`~hkpd.prediction.detection.landmark_spread.landmark_spread`); None when not
+            measured (detections made by hand).
     """
 
     keypoints: np.ndarray
@@ -138,6 +143,7 @@ class KeypointDetection:
     person_mask: PersonMask | None = None
     extremities: np.ndarray | None = None
     extremity_confidences: np.ndarray | None = None
+    landmark_spread: float | None = None
 
     def __repr__(self) -> str:
         """One line of at most 200 characters: how many keypoints are confident, the person's
@@ -262,12 +268,15 @@ class KeypointDetector:
             if people:
                 found = runner.landmarks(loaded.pixels, people[0].region, self.segmentation)
             seconds = time.perf_counter() - start
-        score = people[0].score if people else None
-        detection = (
-            None if found is None else _to_detection(found, loaded, (0, 0), None, seconds, score)
-        )
-        if detection is not None:
-            return detection
+            score = people[0].score if people else None
+            detection = (
+                None
+                if found is None
+                else _to_detection(found, loaded, (0, 0), None, seconds, score)
+            )
+            if detection is not None:
+                spread = landmark_spread(runner, loaded.pixels, found, COCO_FROM_BLAZEPOSE)
+                return replace(detection, landmark_spread=spread)
         listed = self.detect_all(loaded)
         if listed:
             return listed[0]
@@ -281,8 +290,11 @@ class KeypointDetector:
             )
         )
 
-    def _detect_in_box(self, loaded: LoadedImage, search_box: np.ndarray) -> KeypointDetection:
-        """The detector's best person inside the checked ``search_box`` (original pixels)."""
+    def _detect_in_box(
+        self, loaded: LoadedImage, search_box: np.ndarray, spread: bool = True
+    ) -> KeypointDetection:
+        """The detector's best person inside the checked ``search_box`` (original pixels);
+        ``spread``: also measure its ``landmark_spread``."""
         x0, y0, x1, y1 = search_region(loaded, search_box)
         pixels = np.ascontiguousarray(loaded.pixels[y0:y1, x0:x1])
         with self._lock:
@@ -293,7 +305,10 @@ class KeypointDetector:
             look_at = people[0].region if people else _box_region(x1 - x0, y1 - y0)
             found = runner.landmarks(pixels, look_at, self.segmentation)
             seconds = time.perf_counter() - start
-        detection = _to_detection(found, loaded, (x0, y0), search_box, seconds, score)
+            detection = _to_detection(found, loaded, (x0, y0), search_box, seconds, score)
+            if detection is not None and spread:
+                moved = landmark_spread(runner, pixels, found, COCO_FROM_BLAZEPOSE)
+                detection = replace(detection, landmark_spread=moved)
         if detection is None:
             raise NoPersonFoundError(
                 no_person_message(loaded, search_box)
@@ -321,23 +336,32 @@ class KeypointDetector:
           listed can be predicted in their box.
 
         The list is empty when nobody is found (no exception). ``seconds`` of each is the time
-        of the grid search.
+        of the grid search. Each listed person's ``landmark_spread`` is measured (one more
+        landmark run each).
 
         Raises:
             ImageInputError: ``image`` could not be loaded.
         """
         loaded = load_image(image)
         listed: list[KeypointDetection] = []
-        for detection in self._grid_candidates(loaded, tiles):
+        read: list[PoseLandmarks] = []
+        for detection, found in self._grid_candidates(loaded, tiles):
             if any(same_person(detection, other) for other in listed):
                 continue
             if self._confirmed(loaded, detection):
                 listed.append(detection)
-        return listed
+                read.append(found)
+        with self._lock:
+            runner = self._pose_runner()
+            spreads = [landmark_spread(runner, loaded.pixels, f, COCO_FROM_BLAZEPOSE) for f in read]
+        return [replace(d, landmark_spread=m) for d, m in zip(listed, spreads, strict=True)]
 
-    def _grid_candidates(self, loaded: LoadedImage, tiles: int) -> list[KeypointDetection]:
+    def _grid_candidates(
+        self, loaded: LoadedImage, tiles: int
+    ) -> list[tuple[KeypointDetection, PoseLandmarks]]:
         """Every candidate of the whole photo and the grid whose landmarks pass the checks,
-        whole photo first, then by score (duplicates included)."""
+        whole photo first, then by score (duplicates included), with the landmarks it was made
+        from."""
         width, height = loaded.size
         with self._lock:
             runner = self._pose_runner()
@@ -352,10 +376,10 @@ class KeypointDetector:
             found = [runner.landmarks(loaded.pixels, p.region, self.segmentation) for p in people]
             seconds = time.perf_counter() - start
         detections = [
-            _to_detection(landmarks, loaded, (0, 0), None, seconds, person.score)
+            (_to_detection(landmarks, loaded, (0, 0), None, seconds, person.score), landmarks)
             for landmarks, person in zip(found, people, strict=True)
         ]
-        return [detection for detection in detections if detection is not None]
+        return [(detection, read) for detection, read in detections if detection is not None]
 
     def _confirmed(self, loaded: LoadedImage, detection: KeypointDetection) -> bool:
         """Whether :meth:`detect` in ``detection.person_box`` takes that person, the box given
@@ -369,7 +393,8 @@ class KeypointDetector:
     def _takes(self, loaded: LoadedImage, search_box: np.ndarray, person_box: np.ndarray) -> bool:
         """Whether :meth:`detect` inside ``search_box`` takes the person of ``person_box``."""
         try:
-            again = self._detect_in_box(loaded, validated_box(search_box, loaded.original_size))
+            box = validated_box(search_box, loaded.original_size)
+            again = self._detect_in_box(loaded, box, spread=False)
         except (NoPersonFoundError, ValueError):
             return False
         return box_iou(again.person_box, person_box) >= SAME_PERSON_IOU
