@@ -5,13 +5,14 @@ The landmark model reads a square region around the person (:class:`Region`). A 
 clearly is placed in the same spot whatever the region's exact position; a small, blurred or
 crowded person, or a neighbour taken for them, moves. :func:`landmark_spread` reads the region
 again, moved by a few percent of its side (:data:`SPREAD_REGIONS`), and returns how far the 17
-COCO keypoints moved, on average, as a fraction of the person's size. On coco_mini train2017
-people read through their annotated boxes, this number alone tells readings off by more than
-0.2 of the person's size from the rest with an AUROC of 0.95 (0.79 on val2017; a region grown
-by a fifth instead, or both, did as well: ``docs/prediction.md``, "Quality score").
+COCO keypoints moved, on average, as a fraction of the person's size. Alone, this number tells
+readings off by more than 0.2 of the person's size from the rest with an AUROC of 0.95 on
+coco_mini train2017 people read through their annotated boxes and 0.84 on val2017's (a region
+grown by a fifth instead did as well, both together no better: ``docs/prediction.md``,
+"Quality score").
 
-It costs one landmark-model run without the segmentation head (about 18 ms on one CPU core, on
-a 1080 × 720 photo).
+It costs one landmark-model run without the segmentation head: +19 ms a detection on one CPU
+core (median over 11 photos, ``benchmarks/bench_landmark_spread.py``).
 """
 
 from __future__ import annotations
