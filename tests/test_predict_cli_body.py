@@ -22,6 +22,7 @@ from hkpd.body_flags import stated_body
 from hkpd.prediction import cli
 from hkpd.prediction.exports.body_summary import body_caption
 from hkpd.prediction.exports.overview import BACKGROUND
+from hkpd.prediction.quality import ReadingQuality
 
 STATED = ["--sex", "male", "--height", "1.85", "--mass", "80", "2"]
 
@@ -236,7 +237,7 @@ def test_the_overview_footer_has_a_line_about_the_body(runs):
     folder = runs["root"] / "auto" / "person"
     image = np.asarray(Image.open(folder / "overview.png"))
     quality = json.loads((folder / "summary.json").read_text())["quality"]
-    warned = quality["score"] < 0.5 or bool(quality["flags"])  # a third line, in red
+    warned = ReadingQuality(quality["score"], tuple(quality["flags"]), {}).low  # a red 3rd line
     # 480 px panels, a 30 px title row and two 26 px footer rows (one without the body line).
     assert image.shape[0] == 480 + 30 + (3 if warned else 2) * 26
     dark = np.abs(image.astype(int) - np.asarray(BACKGROUND)).max(-1) > 120

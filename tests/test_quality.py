@@ -24,9 +24,12 @@ from hkpd.prediction.crop import CropTransform
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.quality import (
     FLAG_MEANINGS,
+    QUALITY_MEAN,
     QUALITY_WEIGHTS,
     SCORE_SIGNALS,
+    SIGNAL_DIRECTIONS,
     SIGNAL_NAMES,
+    WARNING_FLAGS,
     ReadingQuality,
     facing_ambiguous,
     quality_score,
@@ -46,10 +49,13 @@ def reading(
     confidences: np.ndarray | None = None,
     box: tuple[float, float, float, float] | None = None,
     shift: tuple[float, float] = (0.0, 0.0),
+    search_box: tuple[float, float, float, float] | None = None,
+    landmark_spread: float | None = 0.01,
 ) -> BodyPosterior:
     """A network posterior of a standing body in a ``side``-pixel crop at the photo's centre,
     its keypoints where the mode reprojects (moved by ``shift`` pixels), as a photo's reading
-    would carry them (a stand-in detection: confidences, the photo's size, the person's box)."""
+    would carry them (a stand-in detection: confidences, the photo's size, the person's box,
+    the box searched and the landmark spread)."""
     F = 40.0 * torch.eye(3).expand(23, 3, 3).clone()
     distribution = BodyDistribution(
         F, torch.zeros(10), torch.full((10,), 0.3), FRONTAL_GLOBAL_ORIENT.clone(),
@@ -63,7 +69,11 @@ def reading(
     if box is None:
         box = (*points.min(0), *points.max(0))
     detection = SimpleNamespace(
-        confidences=confidences, image_size=PHOTO, person_box=np.asarray(box, np.float64)
+        confidences=confidences,
+        image_size=PHOTO,
+        person_box=np.asarray(box, np.float64),
+        search_box=None if search_box is None else np.asarray(search_box, np.float64),
+        landmark_spread=landmark_spread,
     )
     prepared = SimpleNamespace(detection=detection, person_mask=None, person_mask_known=None)
     return replace(
@@ -89,10 +99,11 @@ def test_quality_is_computed_once_per_posterior(body) -> None:
     assert posterior.quality is posterior.quality
 
 
-def test_a_small_person_is_flagged_and_scored_lower(body) -> None:
+def test_a_small_person_is_flagged_as_a_note(body) -> None:
     large, small = reading(body).quality, reading(body, side=80.0).quality
     assert "small_person" in small.flags and "small_person" not in large.flags
-    assert small.score < large.score
+    assert not small.low  # a note: it warns only with a low score
+    assert small.score <= large.score
 
 
 def test_a_box_at_the_photo_edge_is_flagged(body) -> None:
@@ -108,7 +119,7 @@ def test_keypoints_outside_the_photo_are_flagged_and_scored_lower(body) -> None:
     assert outside.score < inside.score
 
 
-def test_low_confidences_are_flagged_and_the_score_rises_with_confidence(body) -> None:
+def test_low_confidences_are_flagged_and_the_score_never_falls_with_confidence(body) -> None:
     scores = []
     for level in (0.1, 0.3, 0.5, 0.7, 0.9):
         confidences = np.full(17, 0.95)
@@ -116,8 +127,7 @@ def test_low_confidences_are_flagged_and_the_score_rises_with_confidence(body) -
         quality = reading(body, confidences=confidences).quality
         scores.append(quality.score)
         assert ("few_confident_keypoints" in quality.flags) == (level < 0.6)
-    assert np.all(np.diff(scores) >= 0)
-    assert scores[-1] > scores[0]
+    assert np.all(np.diff(scores) >= 0)  # never lower with more confidence
 
 
 def test_the_score_falls_as_the_mode_misses_the_keypoints(body) -> None:
@@ -140,11 +150,10 @@ def test_a_weak_face_against_the_shoulders_is_facing_ambiguous() -> None:
 
 def test_the_weights_point_the_obvious_way() -> None:
     weights = dict(zip(SCORE_SIGNALS, QUALITY_WEIGHTS[1:], strict=True))
-    assert set(SCORE_SIGNALS) <= set(SIGNAL_NAMES)
-    for better in ("mean_confidence", "log2_person_px", "detector_score"):
-        assert weights[better] > 0, better
-    for worse in ("outside_share", "misfit", "prior_shift", "mask_outside"):
-        assert weights[worse] < 0, worse
+    assert set(SCORE_SIGNALS) <= set(SIGNAL_DIRECTIONS) <= set(SIGNAL_NAMES)
+    for name, weight in weights.items():
+        assert weight * SIGNAL_DIRECTIONS[name] > 0, name
+    assert len(QUALITY_MEAN) == len(SCORE_SIGNALS) == len(QUALITY_WEIGHTS) - 1
 
 
 def test_quality_score_is_a_probability_for_any_signals() -> None:
@@ -159,6 +168,9 @@ def test_the_flags_are_documented() -> None:
     warning = ReadingQuality(0.2, ("small_person",), {}).warning()
     assert "0.20" in warning and "small_person" in warning
     assert ReadingQuality(0.9, (), {}).warning() == ""
+    assert WARNING_FLAGS.issubset(FLAG_MEANINGS)
+    assert ReadingQuality(0.9, ("small_person",), {}).warning() == ""  # a note alone
+    assert ReadingQuality(0.9, ("unstable_keypoints",), {}).low
 
 
 def test_auroc_counts_ranks_and_ties() -> None:
@@ -190,6 +202,10 @@ def test_the_explorer_status_warns_on_a_low_reading_and_shows_a_good_ones_score(
     low = quality_text(SimpleNamespace(quality=ReadingQuality(0.2, ("small_person",), {})))
     assert "Check this reading" in low and "small_person" in low and "0.20" in low
     assert quality_text(SimpleNamespace(quality=ReadingQuality(0.9, (), {}))) == " *Quality 0.90.*"
+    noted = ReadingQuality(0.9, ("small_person",), {})
+    assert quality_text(SimpleNamespace(quality=noted)) == " *Quality 0.90; note: small_person.*"
+    warned = ReadingQuality(0.9, ("small_person", "off_centre_in_box"), {})
+    assert "Check this reading" in quality_text(SimpleNamespace(quality=warned))
     assert quality_text(SimpleNamespace()) == ""  # a custom provider's posterior
 
 
@@ -221,3 +237,62 @@ def test_hard_synthetic_photos_are_reproducible_and_their_truth_is_in_the_photo(
     truth, visible = photos[0].keypoints, np.ones(17, bool)
     moved = truth + np.array([30.0, 40.0])  # 50 px off everywhere
     assert reading_error(moved, truth, visible, 250.0) == pytest.approx(0.2)
+
+
+def test_a_person_off_the_centre_of_the_given_box_is_flagged(body) -> None:
+    points = reading(body).keypoints.double().numpy()
+    centre = (points.min(0) + points.max(0)) / 2
+    side = float(np.ptp(points, axis=0).max()) * 1.3
+    around = (*(centre - side / 2), *(centre + side / 2))
+    centred = reading(body, search_box=around).quality
+    assert centred.signals["box_offset"] == pytest.approx(0.0, abs=1e-6)
+    assert "off_centre_in_box" not in centred.flags
+    beside = (around[0] + 0.4 * side, around[1], around[2] + 0.4 * side, around[3])
+    moved = reading(body, search_box=beside).quality
+    assert moved.signals["box_offset"] == pytest.approx(0.4, abs=1e-6)
+    assert "off_centre_in_box" in moved.flags
+    assert moved.score < centred.score
+    assert reading(body).quality.signals["box_offset"] == 0.0  # no box given
+
+
+def test_keypoints_that_move_on_a_second_look_are_flagged_and_scored_lower(body) -> None:
+    steady = reading(body, landmark_spread=0.01).quality
+    moving = reading(body, landmark_spread=0.3).quality
+    assert steady.signals["log10_landmark_spread"] == pytest.approx(-2.0)
+    assert "unstable_keypoints" in moving.flags and "unstable_keypoints" not in steady.flags
+    assert moving.score < steady.score
+
+
+def test_an_unmeasured_landmark_spread_counts_as_the_fitting_mean(body) -> None:
+    unknown = reading(body, landmark_spread=None).quality
+    assert np.isnan(unknown.signals["log10_landmark_spread"])
+    assert "unstable_keypoints" not in unknown.flags
+    signals = np.array([unknown.signals[name] for name in SCORE_SIGNALS])
+    if "log10_landmark_spread" in SCORE_SIGNALS:
+        index = SCORE_SIGNALS.index("log10_landmark_spread")
+        signals[index] = QUALITY_MEAN[index]
+    assert unknown.score == pytest.approx(float(quality_score(signals)))
+
+
+def test_the_overview_shows_a_low_readings_warning_in_red_under_the_footer(body) -> None:
+    from hkpd.prediction.exports.overview import make_overview
+    from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
+    from hkpd.prediction.image_input import load_image
+
+    posterior = reading(body)
+    mode = posterior.mode()
+    points = posterior.keypoints.double().numpy()
+    pictures = []
+    for warning in ("", ReadingQuality(0.3, ("unstable_keypoints",), {}).warning()):
+        pictures.append(
+            make_overview(
+                load_image(np.full((1000, 1000, 3), 90, np.uint8)), posterior.crop, points,
+                np.ones(17), points, None, mode.vertices[0], body.faces,
+                np.zeros(body.faces.max() + 1), UncertaintyColourScale(), height=240,
+                caption="run", warning=warning,
+            )
+        )  # fmt: skip
+    plain, warned = pictures
+    assert warned.shape[0] == plain.shape[0] + 26  # one more footer row
+    row = warned[-26:, warned.shape[1] // 2 :].astype(int)
+    assert ((row[..., 0] > 150) & (row[..., 1] < 90)).sum() > 50  # red text

@@ -47,6 +47,8 @@ SIGNAL_NAMES: tuple[str, ...] = (
     "face_minus_shoulders",
     "detector_score",
     "mask_share",
+    "log10_landmark_spread",
+    "box_offset",
 )
 """The signals the score reads, in :attr:`ReadingQuality.signals`' order:
 
@@ -68,40 +70,65 @@ SIGNAL_NAMES: tuple[str, ...] = (
 - ``detector_score``: BlazePose's person-detector score (0 when it found nobody in the given
   box and the landmark model read the box itself);
 - ``mask_share``: share of the crop's known pixels that BlazePose's person mask gives to the
-  person (probability >= 0.5; 0 without a mask): large when the mask spills onto people nearby.
+  person (probability >= 0.5; 0 without a mask): large when the mask spills onto people nearby;
+- ``log10_landmark_spread``: log10 of how far BlazePose's keypoints move, as a fraction of the
+  person's size, when it reads the person again from a slightly moved crop
+  (:func:`hkpd.prediction.detection.landmark_spread.landmark_spread`, floored at 0.001); NaN
+  when it was not measured (a person taken from the Person menu's grid search when the whole
+  photo showed nobody), and then weighed as the fitting data's mean;
+- ``box_offset``: distance between the centre of the confident detected keypoints' box and the
+  centre of the box the search was restricted to (``bbox``), as a fraction of that box's longer
+  side (0 when no box was given): large when the detector took someone beside the person the
+  box was drawn around.
 
 A fallback to the network's posterior is a flag, not a signal: none of the fitting readings fell
 back, so the data could not weigh it.
 """
 
+SIGNAL_DIRECTIONS: dict[str, int] = {
+    "mean_confidence": 1,
+    "log2_person_px": 1,
+    "outside_share": -1,
+    "misfit": -1,
+    "prior_shift": -1,
+    "mask_outside": -1,
+    "detector_score": 1,
+    "log10_landmark_spread": -1,
+    "box_offset": -1,
+}
+"""The signals the score may weigh, each with the sign its weight must have (+1: a higher
+signal means a more trustworthy reading): ``docs/experiments/quality_fit.py`` drops a signal
+whose fitted weight comes out against it. The other signals repeat one of these
+(``confident_share``) or have no agreed direction: ``downweighted_share`` and
+``face_minus_shoulders`` came out weighted against their meaning (more outliers or a weaker face
+scored *higher*) and ``mask_share`` is large both for a person filling the crop and for a mask
+spilling onto people nearby."""
+
 SCORE_SIGNALS: tuple[str, ...] = (
-    "mean_confidence",
-    "log2_person_px",
-    "outside_share",
     "misfit",
     "prior_shift",
     "mask_outside",
     "detector_score",
+    "log10_landmark_spread",
+    "box_offset",
 )
-"""The signals the score weighs. The others are reported (and some raise flags) but left out:
-``confident_share`` repeats ``mean_confidence`` (fitted together their weights split with
-opposite signs), and ``downweighted_share`` and ``face_minus_shoulders`` came out weighted
-against their meaning (more outliers or a weaker face scored *higher*), so the rule would
-not have been monotone in them; ``mask_share`` helped on the fitting data but turned the mean
-confidence's and the outside share's weights against theirs (``docs/prediction.md``, "Quality
-score")."""
+"""The signals the score weighs: those of :data:`SIGNAL_DIRECTIONS` whose fitted weights agree
+with their meaning. Fitted with the others, ``mean_confidence`` (the detector is often
+confidently wrong about a neighbour or a small person), ``outside_share`` and
+``log2_person_px`` came out weighted against theirs, so ``docs/experiments/quality_fit.py``
+dropped them; they still raise flags (``docs/prediction.md``, "Quality score")."""
 
-QUALITY_MEAN = (0.8705, 7.096, 0.01681, 0.01849, 0.09747, 0.08005, 0.7455)
+QUALITY_MEAN = (0.01849, 0.09747, 0.08005, 0.7455, -1.627, 0.05494)
 """Each score signal's mean over the fitting data (:data:`SCORE_SIGNALS` order)."""
 
-QUALITY_SPREAD = (0.09429, 0.9429, 0.0626, 0.008576, 0.07331, 0.08125, 0.276)
+QUALITY_SPREAD = (0.008576, 0.07331, 0.08125, 0.276, 0.4448, 0.09851)
 """Each signal's standard deviation over the fitting data."""
 
-QUALITY_WEIGHTS = (2.528, 0.311, 0.07402, -0.03846, -0.6137, -0.6352, -0.3642, 0.4912)
+QUALITY_WEIGHTS = (3.262, -0.6489, -0.5311, -0.3504, 0.08384, -1.28, -0.7036)
 """The logistic rule's weights: the bias, then one per standardised score signal, as
 ``python docs/experiments/quality_fit.py fit`` printed them (readings collected on 2026-12-06
-with the shipped weights: coco_mini train2017, 43 people in their annotated boxes and 27 in the
-detector's, and 266 synthetic photos of seed 1)."""
+with the shipped predictor: coco_mini train2017, 43 people in their annotated boxes and 27 in
+the detector's, and 266 synthetic photos of seed 1)."""
 
 SMALL_PERSON_PX = 96.0
 """``small_person``: the person spans fewer photo pixels than this (the network reads 256)."""
@@ -140,11 +167,41 @@ FLAG_MEANINGS: dict[str, str] = {
     "keypoints_not_fitted": "the most likely body misses the detected keypoints",
     "body_outside_mask": "the most likely body lies partly outside the detector's person mask",
     "fallback": "the keypoint fit failed: the network's own posterior is returned",
+    "unstable_keypoints": "the detector's keypoints move when it looks again from a slightly "
+    "different crop",
+    "off_centre_in_box": "the person found is off the centre of the box given: it may be "
+    "someone beside them",
     "turned_copy": "read from a turned copy (upright copy, half-turned start or turned_around)",
     "facing_ambiguous": "the face is weakly seen: the person may face the other way "
     "(try turned_around())",
 }
 """Every flag :func:`reading_quality` may set, and what it means."""
+
+UNSTABLE_SPREAD = 0.1
+"""``unstable_keypoints``: the keypoints move by more than this share of the person's size on
+average when the detector reads the person again (``log10_landmark_spread`` > -1)."""
+
+OFF_CENTRE_OFFSET = 0.2
+"""``off_centre_in_box``: the detected person's centre lies more than this share of the given
+box's longer side from the box's centre."""
+
+WARNING_FLAGS: frozenset[str] = frozenset(
+    {
+        "few_confident_keypoints",
+        "fit_far_from_network",
+        "keypoints_not_fitted",
+        "body_outside_mask",
+        "fallback",
+        "unstable_keypoints",
+        "off_centre_in_box",
+    }
+)
+"""The flags that warn (:attr:`ReadingQuality.low`) whatever the score: those under which more
+than a third of the fitting readings were off (twice the 18 % of all of them; coco_mini
+train2017 and the seed-1 synthetic photos: ``docs/prediction.md``, "Quality score"), and a
+failed or missed fit. The others (``small_person``, ``cut_off_by_edge``, ``turned_copy``,
+``facing_ambiguous``: 17-27 % off) are notes: they say what to look at, and warn only with a
+low score."""
 
 LOW_SCORE = 0.5
 """Below this score a reading is shown with a warning (the overview, the explorer)."""
@@ -170,8 +227,9 @@ class ReadingQuality:
 
     @property
     def low(self) -> bool:
-        """The score is below :data:`LOW_SCORE` or a flag is set: show a warning."""
-        return self.score < LOW_SCORE or bool(self.flags)
+        """The score is below :data:`LOW_SCORE` or a :data:`WARNING_FLAGS` flag is set: show a
+        warning."""
+        return self.score < LOW_SCORE or not WARNING_FLAGS.isdisjoint(self.flags)
 
     def warning(self) -> str:
         """One line for a picture or a status bar: the score and the flags ("" when
@@ -187,9 +245,10 @@ class ReadingQuality:
 
 
 def quality_score(signals: np.ndarray) -> np.ndarray:
-    """``(..., S)`` signals (:data:`SCORE_SIGNALS` order) -> ``(...)`` scores in [0, 1]."""
+    """``(..., S)`` signals (:data:`SCORE_SIGNALS` order) -> ``(...)`` scores in [0, 1]; a NaN
+    signal (not measured) counts as the fitting data's mean."""
     values = np.asarray(signals, dtype=np.float64)
-    standard = (values - np.asarray(QUALITY_MEAN)) / np.asarray(QUALITY_SPREAD)
+    standard = np.nan_to_num((values - np.asarray(QUALITY_MEAN)) / np.asarray(QUALITY_SPREAD))
     weights = np.asarray(QUALITY_WEIGHTS)
     logit = weights[0] + standard @ weights[1:]
     return 1.0 / (1.0 + np.exp(-np.clip(logit, -30.0, 30.0)))
@@ -222,6 +281,8 @@ def reading_signals(posterior: BodyPosterior) -> dict[str, float]:
         "face_minus_shoulders": face_minus_shoulders(confidences),
         "detector_score": _detector_score(posterior),
         "mask_share": _mask_share(posterior),
+        "log10_landmark_spread": _log10_landmark_spread(posterior),
+        "box_offset": _box_offset(keypoints, confidences, _search_box(posterior)),
     }
 
 
@@ -238,6 +299,8 @@ def reading_flags(posterior: BodyPosterior, signals: dict[str, float]) -> tuple[
         "keypoints_not_fitted": signals["misfit"] > MISFIT_FRACTION,
         "body_outside_mask": signals["mask_outside"] > MASK_OUTSIDE_SHARE,
         "fallback": posterior.fallback_reason is not None,
+        "unstable_keypoints": signals["log10_landmark_spread"] > math.log10(UNSTABLE_SPREAD),
+        "off_centre_in_box": signals["box_offset"] > OFF_CENTRE_OFFSET,
         "turned_copy": bool(
             posterior.turned
             or (fit is not None and posterior.conditioned and (fit.turned or fit.start == 1))
@@ -275,6 +338,32 @@ def _detector_score(posterior: BodyPosterior) -> float:
         return 1.0
     score = getattr(prepared.detection, "detector_score", 1.0)
     return 0.0 if score is None else float(score)
+
+
+def _log10_landmark_spread(posterior: BodyPosterior) -> float:
+    """log10 of the detection's ``landmark_spread`` (floored at 0.001); NaN when unknown."""
+    prepared = posterior.network_input
+    spread = None if prepared is None else getattr(prepared.detection, "landmark_spread", None)
+    return float("nan") if spread is None else math.log10(max(float(spread), 1e-3))
+
+
+def _search_box(posterior: BodyPosterior) -> np.ndarray | None:
+    """``(4,)`` the box the detector's search was restricted to, photo pixels; None."""
+    prepared = posterior.network_input
+    box = None if prepared is None else getattr(prepared.detection, "search_box", None)
+    return None if box is None else np.asarray(box, dtype=np.float64)
+
+
+def _box_offset(keypoints: np.ndarray, confidences: np.ndarray, box: np.ndarray | None) -> float:
+    """Distance from the centre of the ``(17, 2)`` keypoints confident in ``(17,)`` (all when
+    fewer than two are) to the centre of ``box``, / the box's longer side; 0 without a box."""
+    if box is None:
+        return 0.0
+    confident = keypoints[confidences >= CONFIDENCE_THRESHOLD]
+    points = confident if len(confident) >= 2 else keypoints
+    centre = (points.min(axis=0) + points.max(axis=0)) / 2
+    side = max(float((box[2:] - box[:2]).max()), 1.0)
+    return float(np.linalg.norm(centre - (box[:2] + box[2:]) / 2) / side)
 
 
 def _detector_confidences(posterior: BodyPosterior) -> np.ndarray:

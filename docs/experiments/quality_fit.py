@@ -5,12 +5,16 @@ score").
    detector's own person boxes, :mod:`hkpd.evaluation.quality_data`) and synthetic photos with
    hard cases (``--synthetic`` photos for fitting, seed 1; ``--held-out`` photos, seed 2), with
    the shipped predictor; write every reading's signals and error to ``--cache`` (an ``.npz``).
-2. ``fit``: an L2-penalised logistic regression of "not off" on the standardised signals
-   (:data:`hkpd.prediction.quality.SCORE_SIGNALS`), fitted on coco_mini **train2017** and the
+2. ``fit``: an L2-penalised logistic regression of "not off" on the standardised candidate
+   signals (``hkpd.prediction.quality.SIGNAL_DIRECTIONS``, each with the sign its weight must
+   have: a score must not rise with a worse signal), fitted on coco_mini **train2017** and the
    seed-1 synthetic readings only (each source weighted to the same total, so the few real
-   readings count as much as the many synthetic ones); prints the constants to paste into
-   ``core/prediction/quality.py`` and, for every source, the AUROC, the share off among readings
-   scored >= 0.5 and the reliability table (:mod:`hkpd.evaluation.quality_metrics`), with the
+   readings count as much as the many synthetic ones). A signal whose weight comes out against
+   its meaning is dropped and the rest are fitted again, until every sign agrees. A signal not
+   measured (NaN) counts as the fitting data's mean. Prints the constants to paste into
+   ``core/prediction/quality.py`` (``SCORE_SIGNALS`` included) and, for every source, the
+   AUROC, the share off among readings scored >= 0.5 and the reliability table
+   (:mod:`hkpd.evaluation.quality_metrics`), with the
    weights in the cache's own scores (the shipped ones) too.
 
     python docs/experiments/quality_fit.py collect ../shared/data/coco_mini --cache q.npz
@@ -29,7 +33,12 @@ import torch
 from hkpd.evaluation.quality_data import coco_readings, synthetic_readings
 from hkpd.evaluation.quality_metrics import OFF_FRACTION, auroc, quality_summary, quality_table
 from hkpd.prediction import Predictor
-from hkpd.prediction.quality import SCORE_SIGNALS, SIGNAL_NAMES, quality_score
+from hkpd.prediction.quality import (
+    SCORE_SIGNALS,
+    SIGNAL_DIRECTIONS,
+    SIGNAL_NAMES,
+    quality_score,
+)
 
 FIT_SOURCES = ("train2017/annotated", "train2017/detector", "synthetic")
 PENALTY = 1.0
@@ -73,28 +82,52 @@ def logistic(features: np.ndarray, good: np.ndarray, weight: np.ndarray) -> np.n
     return weights
 
 
+def agreeing_fit(
+    signals: np.ndarray, good: np.ndarray, weight: np.ndarray, names: list[str]
+) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """The candidate signals kept, their means and spreads, and the weights (bias first) once
+    every weight's sign agrees with :data:`SIGNAL_DIRECTIONS` (module docstring, step 2).
+
+    ``signals``: ``(N, S)`` fitting readings' signals (``names`` order); ``good``: ``(N,)`` 1
+    when not off; ``weight``: ``(N,)`` each reading's weight."""
+    kept = [name for name in SIGNAL_DIRECTIONS if name in names]
+    while True:
+        columns = signals[:, [names.index(name) for name in kept]]
+        mean = np.nanmean(columns, 0)
+        spread = np.nanstd(columns, 0) + 1e-6
+        standard = np.nan_to_num((columns - mean) / spread)
+        weights = logistic(standard, good, weight)
+        signs = [SIGNAL_DIRECTIONS[name] for name in kept]
+        against = {n: -w * sign for n, w, sign in zip(kept, weights[1:], signs, strict=True)}
+        worst = max(against, key=against.get)
+        if against[worst] <= 0:
+            return kept, mean, spread, weights
+        wrong = -against[worst] * SIGNAL_DIRECTIONS[worst]
+        print(f"dropped {worst}: its weight {wrong:+.3f} is against its meaning")
+        kept.remove(worst)
+
+
 def fit(cache: Path) -> None:
     """Fit on the fitting sources, print the constants and every source's table."""
     data = np.load(cache)
     source, every, error = data["source"], data["signals"], data["error"]
     names = [str(name) for name in data["signal_names"]]
-    signals = every[:, [names.index(name) for name in SCORE_SIGNALS]]
     chosen = np.isin(source, FIT_SOURCES)
-    mean = signals[chosen].mean(0)
-    spread = signals[chosen].std(0) + 1e-6
     weight = np.zeros(len(source))
     for name in FIT_SOURCES:
         rows = source == name
         weight[rows] = chosen.sum() / (len(FIT_SOURCES) * max(rows.sum(), 1))
-    standard = (signals - mean) / spread
-    weights = logistic(standard[chosen], (error[chosen] <= OFF_FRACTION).astype(float),
-                       weight[chosen])  # fmt: skip
+    good = (error[chosen] <= OFF_FRACTION).astype(float)
+    kept, mean, spread, weights = agreeing_fit(every[chosen], good, weight[chosen], names)
+    signals = every[:, [names.index(name) for name in kept]]
+    standard = np.nan_to_num((signals - mean) / spread)
+    print("SCORE_SIGNALS = (" + ", ".join(f'"{name}"' for name in kept) + ")")
     print("QUALITY_MEAN = (" + ", ".join(f"{v:.4g}" for v in mean) + ")")
     print("QUALITY_SPREAD = (" + ", ".join(f"{v:.4g}" for v in spread) + ")")
     print("QUALITY_WEIGHTS = (" + ", ".join(f"{v:.4g}" for v in weights) + ")")
     logits = weights[0] + standard @ weights[1:]
     fitted = 1 / (1 + np.exp(-logits))
-    shipped = quality_score(signals)
+    shipped = quality_score(every[:, [names.index(name) for name in SCORE_SIGNALS]])
     print("\n| source | readings | off | AUROC (fitted) | off at >= 0.5 | AUROC (shipped) | "
           "off at >= 0.5 (shipped) |")  # fmt: skip
     print("|---|---|---|---|---|---|---|")
@@ -111,11 +144,13 @@ def fit(cache: Path) -> None:
     for name, rows in groups.items():
         print("\n" + quality_table(f"{name} (shipped weights)", shipped[rows], error[rows]))
     print("\nSingle signals' AUROC (higher signal = better):")
+    mean_of = np.nanmean(every[chosen], 0)
     for name in sorted(set(source.tolist())):
         rows = source == name
         off = error[rows] > OFF_FRACTION
         cells = ", ".join(
-            f"{signal} {auroc(every[rows, i], off):.2f}" for i, signal in enumerate(names)
+            f"{signal} {auroc(np.nan_to_num(every[rows, i], nan=mean_of[i]), off):.2f}"
+            for i, signal in enumerate(names)
         )
         print(f"- {name}: {cells}")
 

@@ -76,11 +76,12 @@ def source_text(posterior: BodyPosterior) -> str:
 
 def quality_text(posterior: BodyPosterior) -> str:
     """The reading's quality (:mod:`hkpd.prediction.quality`) for the status line: a bold
-    warning with its flags when the score is low or a flag is set, else the score; "" for a
-    custom provider's posterior without one."""
+    warning with its flags when the score is low or a warning flag is set, else the score and
+    any notes (flags that do not warn); "" for a custom provider's posterior without one."""
     quality = getattr(posterior, "quality", None)
     if quality is None:
         return ""
     if quality.low:
         return f" **⚠ Check this reading: {quality.warning()}.**"
-    return f" *Quality {quality.score:.2f}.*"
+    notes = f"; note: {', '.join(quality.flags)}" if quality.flags else ""
+    return f" *Quality {quality.score:.2f}{notes}.*"
