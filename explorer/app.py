@@ -549,7 +549,19 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         except NoPersonFoundError:
             self._no_person(image, token)
             return
-        result = self._turned(result)  # as the Facing folder asks
+        self._remember_reading(token, snapshot, result)  # for Turn around (app_turning)
+        self._show_reading(self._turned(result), image, token, snapshot, started)
+
+    def _show_reading(
+        self,
+        result: PredictionResult,
+        image: np.ndarray,
+        token: int,
+        snapshot: StateSnapshot,
+        started: float,
+    ) -> None:
+        """Show the person's ``result``, predicted from ``snapshot`` by a job begun at
+        ``started`` (``time.perf_counter()``)."""
         self.timings.predict = time.perf_counter() - started
         key = _baseline_key(token, snapshot.person_box, snapshot)
         self._show_prediction(result, image, token, key, not snapshot.active_boxes)

@@ -32,7 +32,10 @@ def turn(posterior: BodyPosterior) -> BodyPosterior:
 class TurningDouble(OcclusionAwareDouble):
     """The double, with evidence posteriors that can be turned around (as the predictor's)."""
 
+    predictions = 0
+
     def predict(self, image, occluders, evidence=True, bbox=None) -> PredictionResult:
+        self.predictions += 1
         result = super().predict(image, occluders, evidence, bbox)
         turner = turn if evidence else None
         return replace(result, posterior=replace(result.posterior, turner=turner))
@@ -145,3 +148,25 @@ def test_the_command_line_saves_a_turned_scene_and_refuses_it_without_evidence(t
     assert json.loads(path.read_text())["turned_around"] is True
     with pytest.raises(SystemExit, match="--turn-around refits the keypoints"):
         cli.main([*common, "--turn-around", "--no-evidence", "--save-scene", str(path)])
+
+
+def test_the_button_turns_the_shown_reading_without_predicting_it_again(app) -> None:
+    double = app.provider
+    app.set_turned_around(False)
+    app.add_occluder((250, 210, 300, 260))
+    assert app.wait_idle(60)
+    shown, before = app.result.posterior, double.predictions
+    app.set_turned_around(True)
+    assert app.wait_idle(60)
+    assert double.predictions == before and app.result.posterior.turned
+    app.set_turned_around(False)
+    assert app.wait_idle(60)
+    assert double.predictions == before and app.result.posterior is shown
+    # An edit and the button together: the edit is predicted, then turned.
+    app.clear_occluders()
+    app.set_turned_around(True)
+    assert app.wait_idle(60)
+    assert double.predictions > before and app.result.posterior.turned
+    assert app.state.snapshot().active_boxes == [] and app._result_key.turned
+    app.set_turned_around(False)
+    assert app.wait_idle(60)
