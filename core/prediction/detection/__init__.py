@@ -7,6 +7,8 @@
   :mod:`~hkpd.prediction.detection.decoding` and :mod:`~hkpd.prediction.detection.warp`.
 - :mod:`~hkpd.prediction.detection.models`: the shipped ``.tflite`` files.
 - :mod:`~hkpd.prediction.detection.boxes`: the boxes searched for people.
+- :mod:`~hkpd.prediction.detection.landmark_spread`: how far the keypoints move on a second
+  look (a quality signal).
 - :mod:`~hkpd.prediction.detection.mediapipe_reference`: the legacy mediapipe pipeline, only as
   the parity reference (the ``[parity]`` extra).
 """
