@@ -74,12 +74,12 @@ SIGNAL_NAMES: tuple[str, ...] = (
 - ``log10_landmark_spread``: log10 of how far BlazePose's keypoints move, as a fraction of the
   person's size, when it reads the person again from a slightly moved crop
   (:func:`hkpd.prediction.detection.landmark_spread.landmark_spread`, floored at 0.001); NaN
-  when it was not measured (a person taken from the Person menu's grid search when the whole
-  photo showed nobody), and then weighed as the fitting data's mean;
-- ``box_offset``: distance between the centre of the confident detected keypoints' box and the
-  centre of the box the search was restricted to (``bbox``), as a fraction of that box's longer
-  side (0 when no box was given): large when the detector took someone beside the person the
-  box was drawn around.
+  when it was not measured (a detection made by hand, a posterior without a photo), and then
+  weighed as the fitting data's mean;
+- ``box_offset``: distance between the centre of the detected person's box (all 33 BlazePose
+  landmarks, ``KeypointDetection.person_box``) and the centre of the box the search was
+  restricted to (``bbox``), as a fraction of that box's longer side (0 when no box was given):
+  large when the detector took someone beside the person the box was drawn around.
 
 A fallback to the network's posterior is a flag, not a signal: none of the fitting readings fell
 back, so the data could not weigh it.
@@ -105,6 +105,7 @@ scored *higher*) and ``mask_share`` is large both for a person filling the crop 
 spilling onto people nearby."""
 
 SCORE_SIGNALS: tuple[str, ...] = (
+    "log2_person_px",
     "misfit",
     "prior_shift",
     "mask_outside",
@@ -114,17 +115,17 @@ SCORE_SIGNALS: tuple[str, ...] = (
 )
 """The signals the score weighs: those of :data:`SIGNAL_DIRECTIONS` whose fitted weights agree
 with their meaning. Fitted with the others, ``mean_confidence`` (the detector is often
-confidently wrong about a neighbour or a small person), ``outside_share`` and
-``log2_person_px`` came out weighted against theirs, so ``docs/experiments/quality_fit.py``
-dropped them; they still raise flags (``docs/prediction.md``, "Quality score")."""
+confidently wrong about a neighbour or a small person) and ``outside_share`` came out weighted
+against theirs, so ``docs/experiments/quality_fit.py`` dropped them; they still raise flags
+(``docs/prediction.md``, "Quality score")."""
 
-QUALITY_MEAN = (0.01849, 0.09747, 0.08005, 0.7455, -1.627, 0.05494)
+QUALITY_MEAN = (7.096, 0.01849, 0.09747, 0.08005, 0.7455, -1.627, 0.04892)
 """Each score signal's mean over the fitting data (:data:`SCORE_SIGNALS` order)."""
 
-QUALITY_SPREAD = (0.008576, 0.07331, 0.08125, 0.276, 0.4448, 0.09851)
+QUALITY_SPREAD = (0.9429, 0.008576, 0.07331, 0.08125, 0.276, 0.4448, 0.0971)
 """Each signal's standard deviation over the fitting data."""
 
-QUALITY_WEIGHTS = (3.262, -0.6489, -0.5311, -0.3504, 0.08384, -1.28, -0.7036)
+QUALITY_WEIGHTS = (3.245, 0.04054, -0.6133, -0.5507, -0.3473, 0.06703, -1.238, -0.7834)
 """The logistic rule's weights: the bias, then one per standardised score signal, as
 ``python docs/experiments/quality_fit.py fit`` printed them (readings collected on 2026-12-06
 with the shipped predictor: coco_mini train2017, 43 people in their annotated boxes and 27 in
@@ -182,8 +183,8 @@ UNSTABLE_SPREAD = 0.1
 average when the detector reads the person again (``log10_landmark_spread`` > -1)."""
 
 OFF_CENTRE_OFFSET = 0.2
-"""``off_centre_in_box``: the detected person's centre lies more than this share of the given
-box's longer side from the box's centre."""
+"""``off_centre_in_box``: the detected person's box is centred more than this share of the
+given box's longer side from the box's centre."""
 
 WARNING_FLAGS: frozenset[str] = frozenset(
     {
@@ -282,7 +283,7 @@ def reading_signals(posterior: BodyPosterior) -> dict[str, float]:
         "detector_score": _detector_score(posterior),
         "mask_share": _mask_share(posterior),
         "log10_landmark_spread": _log10_landmark_spread(posterior),
-        "box_offset": _box_offset(keypoints, confidences, _search_box(posterior)),
+        "box_offset": _box_offset(posterior),
     }
 
 
@@ -348,22 +349,22 @@ def _log10_landmark_spread(posterior: BodyPosterior) -> float:
 
 
 def _search_box(posterior: BodyPosterior) -> np.ndarray | None:
-    """``(4,)`` the box the detector's search was restricted to, photo pixels; None."""
+    """``(4,)`` the box the detector's search was restricted to, photo pixels; None when the
+    whole photo was searched."""
     prepared = posterior.network_input
     box = None if prepared is None else getattr(prepared.detection, "search_box", None)
     return None if box is None else np.asarray(box, dtype=np.float64)
 
 
-def _box_offset(keypoints: np.ndarray, confidences: np.ndarray, box: np.ndarray | None) -> float:
-    """Distance from the centre of the ``(17, 2)`` keypoints confident in ``(17,)`` (all when
-    fewer than two are) to the centre of ``box``, / the box's longer side; 0 without a box."""
+def _box_offset(posterior: BodyPosterior) -> float:
+    """Distance from the centre of the detected person's box to the centre of the box searched,
+    / the searched box's longer side; 0 when the whole photo was searched."""
+    box = _search_box(posterior)
     if box is None:
         return 0.0
-    confident = keypoints[confidences >= CONFIDENCE_THRESHOLD]
-    points = confident if len(confident) >= 2 else keypoints
-    centre = (points.min(axis=0) + points.max(axis=0)) / 2
+    person = np.asarray(posterior.network_input.detection.person_box, dtype=np.float64)
     side = max(float((box[2:] - box[:2]).max()), 1.0)
-    return float(np.linalg.norm(centre - (box[:2] + box[2:]) / 2) / side)
+    return float(np.linalg.norm((person[:2] + person[2:]) / 2 - (box[:2] + box[2:]) / 2) / side)
 
 
 def _detector_confidences(posterior: BodyPosterior) -> np.ndarray:
