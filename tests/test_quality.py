@@ -205,7 +205,8 @@ def test_the_explorer_status_warns_on_a_low_reading_and_shows_a_good_ones_score(
     noted = ReadingQuality(0.9, ("small_person",), {})
     assert quality_text(SimpleNamespace(quality=noted)) == " *Quality 0.90; note: small_person.*"
     warned = ReadingQuality(0.9, ("small_person", "off_centre_in_box"), {})
-    assert "Check this reading" in quality_text(SimpleNamespace(quality=warned))
+    text = quality_text(SimpleNamespace(quality=warned))
+    assert "Check this reading" in text and FLAG_MEANINGS["off_centre_in_box"] in text
     assert quality_text(SimpleNamespace()) == ""  # a custom provider's posterior
 
 

@@ -8,6 +8,7 @@ import viser
 
 from hkpd.explorer.body_text import body_sentence
 from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.quality import FLAG_MEANINGS, WARNING_FLAGS, ReadingQuality
 
 PICKING_TEXT = "**Drag a box around the person** (Shift + drag on the photo)."
 
@@ -82,6 +83,12 @@ def quality_text(posterior: BodyPosterior) -> str:
     if quality is None:
         return ""
     if quality.low:
-        return f" **⚠ Check this reading: {quality.warning()}.**"
+        return f" **⚠ Check this reading: {quality.warning()}.**{_first_warning_meaning(quality)}"
     notes = f"; note: {', '.join(quality.flags)}" if quality.flags else ""
     return f" *Quality {quality.score:.2f}{notes}.*"
+
+
+def _first_warning_meaning(quality: ReadingQuality) -> str:
+    """What the first warning flag of ``quality`` means, in words (" *(…)*"), or ""."""
+    named = [flag for flag in quality.flags if flag in WARNING_FLAGS]
+    return f" *({FLAG_MEANINGS[named[0]]}.)*" if named else ""
