@@ -86,7 +86,7 @@ def test_without_a_mask_the_photo_says_keypoints_only(
     assert code == 0
     assert summary["posterior"]["fit"]["terms"] == ["keypoints"]
     assert "no person mask" in summary["posterior"]["silhouette_note"]
-    assert "[no person mask: keypoints only]" in capsys.readouterr().out
+    assert "[no person mask: keypoints only" in capsys.readouterr().out
 
 
 def test_silhouette_with_no_evidence_is_a_usage_error(

@@ -297,3 +297,16 @@ def test_the_overview_shows_a_low_readings_warning_in_red_under_the_footer(body)
     assert warned.shape[0] == plain.shape[0] + 26  # one more footer row
     row = warned[-26:, warned.shape[1] // 2 :].astype(int)
     assert ((row[..., 0] > 150) & (row[..., 1] < 90)).sum() > 50  # red text
+
+
+def test_hkpd_predict_names_a_reading_to_check_on_the_console() -> None:
+    from hkpd.prediction.cli import _photo_note
+
+    def posterior(quality: ReadingQuality, fallback: str | None = None) -> SimpleNamespace:
+        return SimpleNamespace(quality=quality, fallback_reason=fallback, evidence_fit=None)
+
+    assert _photo_note(posterior(ReadingQuality(0.9, ("small_person",), {})), False) is None
+    warned = _photo_note(posterior(ReadingQuality(0.38, ("off_centre_in_box",), {})), False)
+    assert warned == "check this reading: quality 0.38: off_centre_in_box"
+    both = _photo_note(posterior(ReadingQuality(0.2, ("fallback",), {}), "fit failed"), False)
+    assert both.startswith("network posterior (fit failed); check this reading: quality 0.20")

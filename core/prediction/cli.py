@@ -387,13 +387,19 @@ def _stated_arguments(stated: StatedBody | None) -> dict[str, object]:
 
 def _photo_note(posterior: BodyPosterior, silhouette: bool) -> str | None:
     """The photo's console note: why the evidence fit fell back, or that a requested person
-    mask was missing (the fit then used the keypoints alone); None when all went as asked."""
-    if posterior.fallback_reason:
-        return f"network posterior ({posterior.fallback_reason})"
+    mask was missing (the fit then used the keypoints alone), and the quality warning of a
+    reading to check (:meth:`hkpd.prediction.quality.ReadingQuality.warning`); None when all
+    went as asked."""
+    notes = []
     fit = posterior.evidence_fit
-    if silhouette and fit is not None and "silhouette" not in fit.terms:
-        return "no person mask: keypoints only"
-    return None
+    if posterior.fallback_reason:
+        notes.append(f"network posterior ({posterior.fallback_reason})")
+    elif silhouette and fit is not None and "silhouette" not in fit.terms:
+        notes.append("no person mask: keypoints only")
+    warning = posterior.quality.warning()
+    if warning:
+        notes.append(f"check this reading: {warning}")
+    return "; ".join(notes) or None
 
 
 def _write_meshes(
