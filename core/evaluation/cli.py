@@ -307,7 +307,7 @@ def main(argv: list[str] | None = None) -> int:
             if arguments.out:
                 _write_atomically(arguments.out, text)
             if shape is not None:
-                _write_atomically(shape_json_path(arguments.out), shape_json_text(shape))
+                _write_atomically(shape_json_path(arguments.out), json_text_with_nulls(shape))
     except (OSError, ValueError) as error:  # CheckpointError is a ValueError
         print(f"hkpd-eval: error: {error}", file=sys.stderr)
         return 2
@@ -358,8 +358,9 @@ def shape_json_path(report: Path) -> Path:
     return report.with_name("shape.json")
 
 
-def shape_json_text(record: dict) -> str:
-    """``record`` as JSON, NaN (no finite value) written as null."""
+def json_text_with_nulls(record: dict) -> str:
+    """``record`` as JSON (shape.json, extremities.json), NaN and infinities (no finite
+    value) written as null."""
 
     def clean(value):
         if isinstance(value, float) and not math.isfinite(value):
@@ -648,9 +649,8 @@ def _extremity_report(arguments: argparse.Namespace, device: torch.device) -> st
             f"vs keypoints + hand and foot landmarks (detector-like noise on both{read})",
         ))  # fmt: skip
     if arguments.out is not None:
-        _write_atomically(
-            arguments.out.with_name("extremities.json"), extremity_eval.extremity_json_text(records)
-        )
+        written = arguments.out.with_name("extremities.json")
+        _write_atomically(written, json_text_with_nulls(records))
     return "\n".join(parts)
 
 

@@ -28,7 +28,6 @@ given over all sides (``all``) and over the sides whose landmarks were shown (``
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterable
 
@@ -318,19 +317,6 @@ def extremity_markdown(record: dict, title: str) -> str:
                     f"{row['rotation_error_deg']:.1f} | {row['rotation_spread_deg']:.1f} |"
                 )
     return "\n".join(lines) + "\n"
-
-
-def extremity_json_text(record: dict) -> str:
-    """``record`` as JSON, NaN written as null."""
-
-    def clean(value):
-        if isinstance(value, float) and not math.isfinite(value):
-            return None
-        if isinstance(value, dict):
-            return {key: clean(item) for key, item in value.items()}
-        return value
-
-    return json.dumps(clean(record), indent=2) + "\n"
 
 
 def evaluate_extremity_synthetic(
