@@ -29,7 +29,7 @@ given over all sides (``all``) and over the sides whose landmarks were shown (``
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 
 import torch
 
@@ -296,27 +296,27 @@ def extremity_markdown(record: dict, title: str) -> str:
              f"{record['examples']} examples; coverage is calibrated at 0.50 / 0.90.", "",
              "| evidence | sides | part | mode error cm | uncertainty cm | about its joint cm "
              "| within 50 % | within 90 % |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
-    for evidence in EVIDENCE:
-        for subset in ("all", "shown"):
-            for part in PARTS:
-                row = record[evidence][subset][part]
-                lines.append(
-                    f"| {evidence} | {subset} ({row['sides']}) | {part} | "
-                    f"{row['mode_error_cm']:.1f} | {row['uncertainty_cm']:.1f} | "
-                    f"{row['local_uncertainty_cm']:.1f} | {row['coverage_50']:.2f} | "
-                    f"{row['coverage_90']:.2f} |"
-                )
+    for head, row in _table_rows(record, PARTS):
+        lines.append(
+            f"{head}{row['mode_error_cm']:.1f} | {row['uncertainty_cm']:.1f} | "
+            f"{row['local_uncertainty_cm']:.1f} | {row['coverage_50']:.2f} | "
+            f"{row['coverage_90']:.2f} |"
+        )
     lines += ["", "| evidence | sides | joint | mode rotation error deg | rotation spread deg |",
               "|---|---|---|---|---|"]  # fmt: skip
+    for head, row in _table_rows(record, JOINTS):
+        lines.append(f"{head}{row['rotation_error_deg']:.1f} | {row['rotation_spread_deg']:.1f} |")
+    return "\n".join(lines) + "\n"
+
+
+def _table_rows(record: dict, names: Iterable[str]) -> Iterator[tuple[str, dict]]:
+    """Each table row of ``names`` in ``record``, evidence then subset then name: its first
+    three cells (``"| evidence | subset (sides) | name | "``) and its metrics."""
     for evidence in EVIDENCE:
         for subset in ("all", "shown"):
-            for joint in JOINTS:
-                row = record[evidence][subset][joint]
-                lines.append(
-                    f"| {evidence} | {subset} ({row['sides']}) | {joint} | "
-                    f"{row['rotation_error_deg']:.1f} | {row['rotation_spread_deg']:.1f} |"
-                )
-    return "\n".join(lines) + "\n"
+            for name in names:
+                row = record[evidence][subset][name]
+                yield f"| {evidence} | {subset} ({row['sides']}) | {name} | ", row
 
 
 def evaluate_extremity_synthetic(
