@@ -5,9 +5,10 @@ with the shipped rule (:func:`hkpd.prediction.quality.quality_score`). Only read
 to choose the rule are drawn: coco_mini val2017 (annotated and detector boxes) and the
 held-out synthetic photos (seed 2).
 
-- Left: reliability. Per score bin, the share of readings not off (mode keypoints within 0.2 of
-  the person's size) against the bin's mean score; a calibrated score lies on the diagonal.
-  Marker area ~ readings in the bin.
+- Left: reliability. Per score bin (the tables' bins,
+  :func:`hkpd.evaluation.quality_metrics.reliability_rows`), the share of readings not off
+  (mode keypoints within 0.2 of the person's size) against the bin's mean score; a calibrated
+  score lies on the diagonal. Marker area ~ readings in the bin.
 - Right: every reading's score, off readings (red) and the rest (grey), one row per set, with
   the warning threshold 0.5.
 
@@ -25,7 +26,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from hkpd.evaluation.quality_metrics import OFF_FRACTION, auroc
+from hkpd.evaluation.quality_metrics import OFF_FRACTION, auroc, reliability_rows
 from hkpd.prediction.quality import LOW_SCORE, SCORE_SIGNALS, quality_score
 
 SETS = {
@@ -35,17 +36,6 @@ SETS = {
 """The sets drawn, each a test on the cache's ``source`` column."""
 
 COLOURS = ("#1f5fa8", "#d98c1f")
-BINS = np.array([0.0, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0])
-
-
-def reliability_points(score: np.ndarray, good: np.ndarray) -> list[tuple[float, float, int]]:
-    """``(mean score, share not off, readings)`` of every non-empty :data:`BINS` bin."""
-    index = np.clip(np.digitize(score, BINS[1:-1]), 0, len(BINS) - 2)
-    return [
-        (float(score[index == b].mean()), float(good[index == b].mean()), int((index == b).sum()))
-        for b in range(len(BINS) - 1)
-        if (index == b).any()
-    ]
 
 
 def main() -> None:
@@ -61,7 +51,8 @@ def main() -> None:
     left.plot([0, 1], [0, 1], color="0.7", lw=1, ls="--", label="calibrated")
     for row, ((label, test), colour) in enumerate(zip(SETS.items(), COLOURS, strict=True)):
         rows = test(source)
-        points = reliability_points(score[rows], good[rows])
+        bins = reliability_rows(score[rows], ~good[rows])
+        points = [(row["mean_score"], row["not_off"], row["count"]) for row in bins]
         ranking = auroc(score[rows], ~good[rows])
         left.plot([p[0] for p in points], [p[1] for p in points], color=colour, lw=1, marker="o",
                   markersize=4, label=f"{label} (AUROC {ranking:.2f})")  # fmt: skip
