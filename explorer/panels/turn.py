@@ -27,7 +27,7 @@ class TurnActions(Protocol):
     """What the facing section asks of the app."""
 
     def set_turned_around(self, enabled: bool) -> None:
-        """Show the turned-around reading (True) or the reading as predicted; predicts again."""
+        """Show the turned-around reading (True) or the reading as predicted."""
         ...
 
 
