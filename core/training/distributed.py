@@ -21,6 +21,7 @@ no process group, no wrapper, no collective.
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -126,20 +127,31 @@ def start_process_group(launch: Launch, device: torch.device) -> None:
     )  # fmt: skip
 
 
+GLOO_RELEASE_S = 0.2
+"""How long :func:`end_process_group` lets gloo's worker threads release a finished run's last
+collectives before the group can be torn down, seconds."""
+
+
 def end_process_group(wait_for_all: bool = False) -> None:
     """Leave the process group, if this process joined one.
 
     Args:
         wait_for_all: first wait until every rank has come here (a finished run). Gloo's
             worker threads release a collective's tensors after it returns, which needs the
-            GIL; tearing the group down right after a collective (holding the GIL) can then
-            hang the process at exit. The barrier lets those releases happen first. A run
-            that failed leaves without it (the other ranks may be gone).
+            GIL. Tearing the group down (``~ProcessGroupGloo`` joins those threads, holding the
+            GIL: when the DDP wrapper is freed at the end of ``main``) before they have done so
+            hangs the process at exit. The barrier waits for every rank's last collective; the
+            barrier's own work, which keeps the collectives before it (``gather_object``'s
+            tensors), is released by a worker thread just after the barrier returns, so this
+            process then sleeps :data:`GLOO_RELEASE_S` (the GIL free) to let it. Without the
+            sleep, 2 of 48 two-process runs hung at exit on a loaded 2-core machine. A run
+            that failed leaves without either (the other ranks may be gone).
     """
     if not dist.is_initialized():
         return
     if wait_for_all:
         dist.barrier()
+        time.sleep(GLOO_RELEASE_S)
     dist.destroy_process_group()
 
 
