@@ -193,8 +193,25 @@ class BodyPosterior:
 
     @property
     def sex(self) -> str | None:
-        """The more probable sex, whose body :meth:`mode` draws (None without sexes)."""
+        """The more probable sex (None without sexes); :attr:`drawn_sex` says whose body
+        :meth:`mode` draws."""
         return None if self.sexes is None else self.sexes.most_probable
+
+    @property
+    def drawn_sex(self) -> str | None:
+        """Whose body :meth:`mode` draws: :attr:`sex` when it is sure, ``"neutral"`` (neither
+        sex's chest and hips) when it is not or the reading is in doubt
+        (:attr:`hkpd.prediction.sex_latent.SexShapes.drawn`); None without sexes."""
+        return None if self.sexes is None else self.sexes.drawn
+
+    @property
+    def sex_evidence(self) -> dict[str, float | None] | None:
+        """``{"face": p_male or None, "keypoints": p_male}``: what each source says of the sex
+        on its own (the face None when it said nothing or was not read); None without sexes,
+        or when the sex was stated."""
+        if self.sexes is None or self.sexes.evidence is None:
+            return None
+        return self.sexes.evidence.as_dict()
 
     @property
     def sex_probability(self) -> float | None:

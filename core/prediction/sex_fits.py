@@ -27,7 +27,7 @@ from hkpd.conditioning import (
 )
 from hkpd.distributions import BodyDistribution
 from hkpd.prediction.posterior import BodyPosterior
-from hkpd.prediction.sex_latent import SexShapes, sex_probabilities
+from hkpd.prediction.sex_latent import NEUTRAL, SexEvidence, SexShapes, sex_probabilities
 
 
 @dataclass(frozen=True)
@@ -75,6 +75,7 @@ def fit_each_sex(
     config: EvidenceConfig,
     extra_terms: Sequence[EvidenceTerm],
     stated: StatedBody,
+    face: FaceWord | None = None,
 ) -> SexFits:
     """Fit ``evidence`` from the ``B`` starts under each sex's shape prior.
 
@@ -85,6 +86,8 @@ def fit_each_sex(
         config: the evidence settings.
         extra_terms: further evidence (the person mask).
         stated: what the user stated (a stated sex is the only one fitted).
+        face: what the face said of the sex (its calibrated P(male), or why it said nothing),
+            evidence beside the fits' (:func:`sex_probabilities`); None: not read.
 
     Returns:
         :class:`SexFits`. A fit that fails keeps its prior's shape (first start) and weight.
@@ -103,21 +106,49 @@ def fit_each_sex(
         else:
             means[sex], covariances[sex] = prior.mean[0].float(), prior.covariance[0].float()
             log_evidence[sex] = float(prior.log_weight[0])
+    evidence = None
     if stated.sex is not None:
         probabilities = {sex: float(sex == stated.sex) for sex in SEX_NAMES}
     else:
-        probabilities = sex_probabilities(log_evidence)
+        face = face or FaceWord()
+        probabilities = sex_probabilities(log_evidence, face.p_male)
+        keypoints = sex_probabilities(log_evidence)["male"]
+        evidence = SexEvidence(keypoints, face.p_male, face.reason)
     shapes = SexShapes(
-        probabilities, means, covariances, stated.sex is not None, dict(log_evidence)
+        probabilities,
+        means,
+        covariances,
+        stated.sex is not None,
+        dict(log_evidence),
+        evidence=evidence,
     )
     return SexFits(fits, priors, shapes)
 
 
+@dataclass(frozen=True)
+class FaceWord:
+    """What the face said of the sex: ``p_male`` (calibrated, in (0, 1)) or None with the
+    ``reason`` it said nothing (None reason: the face was not read)."""
+
+    p_male: float | None = None
+    reason: str | None = None
+
+
+def with_drawn_shape(posterior: BodyPosterior) -> BodyPosterior:
+    """``posterior`` drawing the body its sexes say (:attr:`SexShapes.drawn`): unchanged when
+    that is the more probable sex, the two sexes' midpoint shape when it is neither."""
+    sexes = posterior.sexes
+    if sexes is None or sexes.drawn != NEUTRAL:
+        return posterior
+    return with_sex_shape(posterior, sexes)
+
+
 def with_sex_shape(posterior: BodyPosterior, shapes: SexShapes) -> BodyPosterior:
-    """``posterior`` (e.g. the network's, when the fit fell back) with the more probable sex's
-    shape as its shape Gaussian and ``shapes`` as its sexes."""
+    """``posterior`` with ``shapes`` as its sexes and the drawn body's shape
+    (:meth:`SexShapes.drawn_mean`: the more probable sex's, or neither sex's when unsure) as its
+    shape Gaussian's mean (the std is the more probable sex's)."""
     sex = shapes.most_probable
-    mean = shapes.means[sex].to(posterior.shape_mean)
+    mean = shapes.drawn_mean().to(posterior.shape_mean)
     std = shapes.covariances[sex].diagonal().clamp_min(0.0).sqrt().to(posterior.shape_std)
     distribution = replace(posterior.distribution, shape_mean=mean, shape_std=std)
     edited = replace(posterior, distribution=distribution, sexes=shapes)
