@@ -109,7 +109,7 @@ class KeepingActions(_Base):
             return
         try:
             content = scene.photo.read()
-            image = decode_upload(scene.photo.name, content)
+            image = decode_upload(scene.photo.file_name(content), content)
         except (SceneFileError, UploadError) as error:
             self._notify(client, "Scene not loaded", str(error), error=True)
             return

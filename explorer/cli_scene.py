@@ -72,7 +72,7 @@ def open_scene_file(path: str) -> tuple[SceneFile, np.ndarray | None]:
         if scene.photo.demo == "synthetic":
             return scene, None
         content = scene.photo.read(Path(path).resolve().parent)
-        return scene, decode_upload(scene.photo.name, content)
+        return scene, decode_upload(scene.photo.file_name(content), content)
     except (SceneFileError, UploadError) as error:
         raise SystemExit(f"hkpd-explore: --scene {path}: {error}") from None
 
@@ -91,7 +91,7 @@ def _photo_of(args: argparse.Namespace, name: str) -> PhotoRef:
     if args.image is None and args.demo == "synthetic":
         return PhotoRef(name, demo="synthetic")
     path = args.image if args.image is not None else shipped_photo()
-    try:
+    try:  # the shipped photo's bytes are named as the shipped photo, not by this path
         return PhotoRef.of_file(path, name=name, embed=args.embed_photo)
     except OSError as error:
         raise SystemExit(f"hkpd-explore: cannot read {path}: {error}") from None

@@ -1,7 +1,8 @@
 """A scene file: everything needed to reopen an explorer scene, as one small JSON document.
 
-It holds the photo (by path with its sha256 checksum, embedded as base64 when asked, or the
-synthetic demo scene), the person box, the occluder boxes, the concentration factors (per
+It holds the photo (by path with its sha256 checksum, embedded as base64 when asked, the
+shipped photo by name and checksum so the scene opens on any install, or the synthetic demo
+scene), the person box, the occluder boxes, the concentration factors (per
 joint, on all joints, on the shape spread), the evidence switches, the display settings, the
 seed, the model's path and the compare setting. ``hkpd-explore PHOTO ... --save-scene FILE``
 writes one, ``hkpd-explore --scene FILE`` and the panel's *Load scene* open one. An exported
@@ -24,7 +25,9 @@ from pathlib import Path
 from typing import Any
 
 from hkpd.explorer.colour_map import COLOURINGS
+from hkpd.explorer.demo_photo import SHIPPED_PHOTO, shipped_photo
 from hkpd.explorer.state import CONCENTRATION_EXPONENT_RANGE, MAX_DISPLAYED_SAMPLES, MAX_SAMPLES
+from hkpd.explorer.upload import ALLOWED_SUFFIXES
 from hkpd.kinematic_tree import BODY_JOINT_NAMES
 from hkpd.stated_body import StatedBody
 
@@ -36,6 +39,13 @@ PAGE_SCENE_ID = "hkpd-scene"
 """``id`` of the ``<script type="application/json">`` element holding a page's scene."""
 
 Box = tuple[float, float, float, float]
+
+SHIPPED_PHOTO_NAME = "the shipped CC0 photo"
+"""What captions call the shipped photo."""
+
+_MAGIC_SUFFIXES = ((b"\xff\xd8\xff", ".jpg"), (b"\x89PNG", ".png"), (b"BM", ".bmp"),
+                   (b"II*\x00", ".tif"), (b"MM\x00*", ".tif"))  # fmt: skip
+"""A photo file's first bytes -> a suffix (WebP is checked apart: RIFF....WEBP)."""
 
 
 class SceneFileError(ValueError):
@@ -51,7 +61,8 @@ class PhotoRef:
         path: the photo file (absolute, or relative to the scene file's folder).
         sha256: hex digest of the photo file's bytes (or of the embedded bytes).
         embedded: base64 of the photo file's bytes (a JPEG or PNG).
-        demo: ``"synthetic"``: the scene hkpd renders itself (no file).
+        demo: ``"synthetic"``: the scene hkpd renders itself (no file); ``"shipped"``: the
+            photo shipped in ``hkpd.assets`` (every install has it; checked by ``sha256``).
     """
 
     name: str
@@ -64,23 +75,37 @@ class PhotoRef:
         given = sum(v is not None for v in (self.path, self.embedded, self.demo))
         if given != 1:
             raise SceneFileError("a scene's photo needs exactly one of path, embedded or demo")
-        if self.demo not in (None, "synthetic"):
-            raise SceneFileError(f"unknown demo photo {self.demo!r}; the one demo is 'synthetic'")
-        if self.demo is None and not (
+        if self.demo not in (None, "synthetic", "shipped"):
+            raise SceneFileError(
+                f"unknown demo photo {self.demo!r}; the demos are 'synthetic' and 'shipped'"
+            )
+        if self.demo != "synthetic" and not (
             isinstance(self.sha256, str) and re.fullmatch(r"[0-9a-f]{64}", self.sha256)
         ):
             raise SceneFileError("a scene's photo needs its sha256 checksum (64 hex digits)")
 
     @classmethod
     def of_file(cls, path: str | Path, name: str | None = None, embed: bool = False) -> PhotoRef:
-        """The photo file ``path`` by its absolute path and checksum, or embedded."""
+        """The photo file ``path`` by its absolute path and checksum, or embedded; the shipped
+        photo (same bytes) as ``demo="shipped"``, so the scene opens on any install."""
         source = Path(path)
         content = source.read_bytes()
         digest = hashlib.sha256(content).hexdigest()
         label = name or source.name
         if embed:
             return cls(label, sha256=digest, embedded=base64.b64encode(content).decode("ascii"))
+        if digest == _shipped_sha256():
+            return cls(label, sha256=digest, demo="shipped")
         return cls(label, path=str(source.resolve()), sha256=digest)
+
+    @classmethod
+    def shipped(cls) -> PhotoRef:
+        """The shipped photo, by name and checksum (no path).
+
+        Raises:
+            FileNotFoundError: it is not in this installation.
+        """
+        return cls(SHIPPED_PHOTO_NAME, sha256=_shipped_sha256(required=True), demo="shipped")
 
     @classmethod
     def of_bytes(cls, content: bytes, name: str) -> PhotoRef:
@@ -94,9 +119,15 @@ class PhotoRef:
         Raises:
             SceneFileError: the file is missing, or its bytes do not match the checksum.
         """
-        if self.demo is not None:
+        if self.demo == "synthetic":
             raise SceneFileError("the synthetic demo scene has no photo file")
-        if self.embedded is not None:
+        if self.demo == "shipped" or (
+            self.path is not None
+            and self.sha256 == _shipped_sha256()
+            and not _resolved(self.path, scene_folder).is_file()
+        ):  # an older scene names the shipped photo by a path on the machine that saved it
+            content, where = _shipped_bytes(), "this installation's shipped photo"
+        elif self.embedded is not None:
             try:
                 content = base64.b64decode(self.embedded, validate=True)
             except ValueError:
@@ -104,9 +135,7 @@ class PhotoRef:
             where = "the embedded photo"
         else:
             assert self.path is not None
-            source = Path(self.path)
-            if not source.is_absolute() and scene_folder is not None:
-                source = scene_folder / source
+            source = _resolved(self.path, scene_folder)
             if not source.is_file():
                 raise SceneFileError(
                     f"the scene's photo {source} is missing: put it back there, or save the "
@@ -119,6 +148,46 @@ class PhotoRef:
                 "saved (boxes would land on other pixels); save the scene again from this photo"
             )
         return content
+
+    def file_name(self, content: bytes) -> str:
+        """A name with the photo's file suffix, for decoding ``content`` (the caption name of
+        the shipped or an embedded photo may have none: the suffix is read from the bytes)."""
+        if self.demo == "shipped":
+            return SHIPPED_PHOTO[-1]
+        named = Path(self.path).name if self.path is not None else self.name
+        if Path(named).suffix.lower() in ALLOWED_SUFFIXES:
+            return named
+        if content[:4] == b"RIFF" and content[8:12] == b"WEBP":
+            return f"{named}.webp"
+        suffix = next((s for magic, s in _MAGIC_SUFFIXES if content.startswith(magic)), "")
+        return named + suffix
+
+
+def _resolved(path: str, scene_folder: Path | None) -> Path:
+    source = Path(path)
+    return scene_folder / source if not source.is_absolute() and scene_folder else source
+
+
+def _shipped_bytes() -> bytes:
+    try:
+        return shipped_photo().read_bytes()
+    except FileNotFoundError as error:
+        raise SceneFileError(f"the scene shows the shipped photo, but {error}") from None
+
+
+_SHIPPED_DIGEST: list[str] = []
+
+
+def _shipped_sha256(required: bool = False) -> str | None:
+    """The shipped photo's sha256 (None when this install lacks it, unless ``required``)."""
+    if not _SHIPPED_DIGEST:
+        try:
+            _SHIPPED_DIGEST.append(hashlib.sha256(shipped_photo().read_bytes()).hexdigest())
+        except FileNotFoundError:
+            if required:
+                raise
+            return None
+    return _SHIPPED_DIGEST[0]
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ import torch
 from PIL import Image
 from test_explorer_double import OcclusionAwareDouble
 
-from hkpd.explorer import cli, scene_keeping
+from hkpd.explorer import cli, cli_scene, scene_keeping
 from hkpd.explorer.app import ExplorerApp
 from hkpd.explorer.html_page import CAPTION_ID
 from hkpd.explorer.scene_file import (
@@ -203,3 +203,28 @@ def test_the_stated_body_is_a_difference_from_the_defaults() -> None:
 
     scene = SceneFile(photo=photo_ref, sex="female", measurements={"mass_kg": [60.0, 1.0]})
     assert any(item.startswith("stated: female") for item in describe_differences(scene))
+
+
+def test_a_scene_of_the_shipped_photo_reopens_on_any_install(tmp_path, monkeypatch) -> None:
+    """The shipped photo is named as the shipped photo (marker + checksum), not by this
+    machine's path: its scene, its embedded scene, its page and an older scene holding another
+    machine's absolute path all open with ``--scene``."""
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["--occluder", "377", "255", "473", "290", "--save-scene", "s.json"]) == 0
+    photo = json.loads((tmp_path / "s.json").read_text())["photo"]
+    assert photo["demo"] == "shipped" and "path" not in photo
+    assert cli.main(["--embed-photo", "--save-scene", "e.json"]) == 0
+    assert cli.main(["--provider", DOUBLE, "--samples", "4", "--meshes", "1",
+                     "--export-html", "page.html"]) == 0  # fmt: skip
+    older = json.loads((tmp_path / "s.json").read_text())
+    elsewhere = "/home/teacher/venv/hkpd/assets/photos/warrior_lunge.jpg"
+    older["photo"] = {"name": "the shipped CC0 photo", "sha256": photo["sha256"], "path": elsewhere}
+    (tmp_path / "older.json").write_text(json.dumps(older))
+    for name in ("s.json", "e.json", "page.html", "older.json"):
+        image = cli_scene.open_scene_file(name)[1]
+        assert image is not None and image.shape == (720, 1080, 3), name
+    assert cli_scene.open_scene_file("s.json")[0].active_boxes == [(377.0, 255.0, 473.0, 290.0)]
+    older["photo"]["sha256"] = "0" * 64  # another photo, missing here: still refused
+    (tmp_path / "other.json").write_text(json.dumps(older))
+    with pytest.raises(SystemExit, match="is missing: put it back there"):
+        cli_scene.open_scene_file("other.json")
