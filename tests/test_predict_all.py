@@ -46,7 +46,10 @@ def test_predict_all_gives_one_posterior_per_person_larger_first(predictor: Pred
     canvas = _two_people()
     posteriors = predictor.predict_all(canvas, sex="male")
     assert len(posteriors) == 2
-    boxes = [p.network_input.detection.person_box for p in posteriors]
+    boxes = [p.person_box for p in posteriors]
+    assert all(isinstance(box, tuple) and len(box) == 4 for box in boxes)
+    assert boxes == [tuple(float(v) for v in p.network_input.detection.person_box)
+                     for p in posteriors]  # fmt: skip
     areas = [(b[2] - b[0]) * (b[3] - b[1]) for b in boxes]
     assert areas[0] > 2 * areas[1]
     assert boxes[1][0] > canvas.shape[1] * 0.6  # the small copy is on the right
@@ -59,3 +62,5 @@ def test_predict_all_gives_one_posterior_per_person_larger_first(predictor: Pred
 def test_predict_many_keeps_the_photos_order(predictor: Predictor) -> None:
     one, two = predictor.predict_many([PHOTO, PHOTO], evidence=False)
     assert torch.equal(one.F, two.F) and one.source == two.source == "network"
+    x0, y0, x1, y1 = one.person_box  # photo pixels (the 1080 x 720 photo): the lunging woman
+    assert 0 <= x0 < x1 <= 1080 and 0 <= y0 < y1 <= 720 and x1 - x0 > 300

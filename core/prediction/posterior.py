@@ -283,6 +283,17 @@ class BodyPosterior:
         return self.source == "evidence"
 
     @property
+    def person_box(self) -> tuple[float, float, float, float] | None:
+        """``(x0, y0, x1, y1)`` photo pixels: the box of the person this reading is of (all 33
+        BlazePose landmarks, clipped to the photo; ``summary.json``'s ``detected_bbox``), so
+        :meth:`hkpd.prediction.Predictor.predict_all`'s posteriors say who each is. None when
+        the posterior did not come from a photo."""
+        if self.network_input is None:
+            return None
+        x0, y0, x1, y1 = (float(v) for v in self.network_input.detection.person_box[:4])
+        return (x0, y0, x1, y1)
+
+    @property
     def fallback_reason(self) -> str | None:
         """Why an evidence posterior was asked for but the network's is returned (else None)."""
         if self.evidence_fit is None or self.conditioned:
