@@ -92,6 +92,9 @@ no person (BlazePose occasionally hallucinates a pose on clutter)."""
 CONFIDENT_VISIBILITY = 0.5
 """Visibility at which a keypoint counts towards :data:`MIN_CONFIDENT_KEYPOINTS`."""
 
+FACE_LANDMARK_COUNT = 11
+"""BlazePose's landmarks 0-10 are the face's (kept as ``KeypointDetection.face_landmarks``)."""
+
 
 class NoPersonFoundError(RuntimeError):
     """The detector found no person; the message suggests what to try."""
@@ -129,6 +132,11 @@ class KeypointDetection:
             the landmark model reads the person again from a slightly moved crop
             (:func:`~hkpd.prediction.detection.landmark_spread.landmark_spread`); None when not
             measured (detections made by hand).
+        face_landmarks: ``(11, 3)`` float64 BlazePose's face landmarks 0-10 (nose; left eye
+            inner, centre, outer; right eye inner, centre, outer; left ear; right ear; mouth
+            left; mouth right) as ``(u, v, visibility)``, original-photo pixels, visibility in
+            [0, 1] (:mod:`hkpd.prediction.detection.face_sex` cuts the face from them); None
+            when not known (a detection made by hand).
     """
 
     keypoints: np.ndarray
@@ -144,6 +152,7 @@ class KeypointDetection:
     extremities: np.ndarray | None = None
     extremity_confidences: np.ndarray | None = None
     landmark_spread: float | None = None
+    face_landmarks: np.ndarray | None = None
 
     def __repr__(self) -> str:
         """One line of at most 200 characters: how many keypoints are confident, the person's
@@ -497,6 +506,13 @@ def _to_detection(
         extremities=original[list(BLAZEPOSE_EXTREMITY_INDICES)],
         extremity_confidences=np.clip(
             found.visibility[list(BLAZEPOSE_EXTREMITY_INDICES)], 0.0, 1.0
+        ),
+        face_landmarks=np.concatenate(
+            [
+                original[:FACE_LANDMARK_COUNT],
+                np.clip(found.visibility[:FACE_LANDMARK_COUNT, None], 0.0, 1.0),
+            ],
+            axis=1,
         ),
     )
 
