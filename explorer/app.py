@@ -271,8 +271,8 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
 
     def page_html(self) -> str:
         """The current scene as one self-contained HTML page with its caption and the scene
-        file it shows embedded (:mod:`hkpd.explorer.html_page`); the titles of the live app
-        ("shift+drag to hide a part") are left out of it."""
+        file it shows embedded (:mod:`hkpd.explorer.html_page`); nothing of the live app
+        (its hints, its buttons) is in it."""
         caption = self.page_caption()
         if caption is None:
             raise RuntimeError("nothing to save yet: the first prediction has not finished")

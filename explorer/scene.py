@@ -569,8 +569,11 @@ class ExplorerScene:
 
 def column_titles(kind: str, static: bool = False) -> tuple[str, str]:
     """The photo's and the uncertainty body's column titles for the colouring ``kind`` (a key
-    of ``COLOURINGS``); ``static``: for a saved page (no "shift+drag" hint)."""
-    photo = "Photo" if static else "Photo · shift+drag to hide a part"
+    of ``COLOURINGS``). The same in the live app and in a saved page or PNG (``static``, kept
+    for callers): a title changed just for a screenshot was still re-drawing in the browser
+    when the PNG was taken, so PNGs kept the live hint; how to draw a box is said in the
+    *Photo* panel instead."""
+    photo = "Photo"
     if kind == "change":
         return photo, "Change: uncertainty ÷ no occluders, 1× concentrations"
     return photo, "Uncertainty over samples"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -354,7 +355,34 @@ def test_the_status_says_which_distribution_and_whether_it_was_read_upright() ->
     mirrored = SimpleNamespace(
         fallback_reason=None, conditioned=False, upright_tilt_degrees=None, mirror_read=True
     )
-    assert "mirror image" in source_text(mirrored) and "mirror" not in source_text(lying)
+    assert "flipped left to right" in source_text(mirrored)
+    assert "flipped" not in source_text(lying)
+
+
+def test_class_facing_text_names_no_internal_flag() -> None:
+    """Issue 58: the status line (and so the page caption) says each quality flag in words,
+    never its name (``turned_copy``, ``cut_off_by_edge`` ...), and the PNG's photo title is the
+    live app's (no "shift+drag" hint left in a screenshot)."""
+    from types import SimpleNamespace
+
+    from hkpd.explorer.html_page import static_text
+    from hkpd.explorer.panels.status import source_text
+    from hkpd.explorer.scene import column_titles
+    from hkpd.prediction.quality import FLAG_MEANINGS, ReadingQuality
+
+    for flags in (("cut_off_by_edge", "turned_copy"), ("small_person", "off_centre_in_box"),
+                  tuple(FLAG_MEANINGS)):  # fmt: skip
+        for score in (0.9, 0.3):
+            posterior = SimpleNamespace(
+                fallback_reason=None, conditioned=False, upright_tilt_degrees=12.0,
+                mirror_read=True, quality=ReadingQuality(score, flags, {}),
+            )  # fmt: skip
+            for text in (source_text(posterior), static_text(source_text(posterior))):
+                assert not re.search(r"\b[a-z]+_[a-z_]+\b|\w\(\)", text), text
+                assert "mirror image" not in text
+                assert FLAG_MEANINGS[flags[0]] in text
+    assert column_titles("log", static=False) == column_titles("log", static=True)
+    assert "shift" not in column_titles("log")[0].lower()
 
 
 def change_ratio(app, parts: tuple[str, ...]) -> float:

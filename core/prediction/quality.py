@@ -172,11 +172,13 @@ FLAG_MEANINGS: dict[str, str] = {
     "different crop",
     "off_centre_in_box": "the person found is off the centre of the box given: it may be "
     "someone beside them",
-    "turned_copy": "read from a turned copy (upright copy, half-turned start or turned_around)",
-    "facing_ambiguous": "the face is weakly seen: the person may face the other way "
-    "(try turned_around())",
+    "turned_copy": "read from a copy of the photo turned upright, or from a body turned to "
+    "face the other way",
+    "facing_ambiguous": "the face is weakly seen: the person may face the other way (the "
+    "turned-around reading may fit better)",
 }
-"""Every flag :func:`reading_quality` may set, and what it means."""
+"""Every flag :func:`reading_quality` may set, and what it means: plain words a class reads
+(the explorer's status line and captions show these, never the flag names)."""
 
 UNSTABLE_SPREAD = 0.1
 """``unstable_keypoints``: the keypoints move by more than this share of the person's size on

@@ -68,7 +68,10 @@ def source_text(posterior: BodyPosterior) -> str:
     if tilt is not None:
         text += f" The person leans {abs(tilt):.0f}°: read from a copy turned upright."
     if getattr(posterior, "mirror_read", False):
-        text += " Read from the mirror image (its body fits the keypoints better)."
+        text += (
+            " The photo was also read flipped left to right: that reading fitted the keypoints "
+            "better, so the fit started from it."
+        )
     body = body_sentence(posterior)
     if body:
         text += f" {body}"
@@ -77,18 +80,21 @@ def source_text(posterior: BodyPosterior) -> str:
 
 def quality_text(posterior: BodyPosterior) -> str:
     """The reading's quality (:mod:`hkpd.prediction.quality`) for the status line: a bold
-    warning with its flags when the score is low or a warning flag is set, else the score and
-    any notes (flags that do not warn); "" for a custom provider's posterior without one."""
+    warning with what looks wrong when the score is low or a warning flag is set, else the
+    score and any notes (flags that do not warn); each flag in words (:func:`flag_words`),
+    never its name. "" for a custom provider's posterior without a quality."""
     quality = getattr(posterior, "quality", None)
     if quality is None:
         return ""
     if quality.low:
-        return f" **⚠ Check this reading: {quality.warning()}.**{_first_warning_meaning(quality)}"
-    notes = f"; note: {', '.join(quality.flags)}" if quality.flags else ""
+        words = f" *({flag_words(quality)}.)*" if quality.flags else ""
+        return f" **⚠ Check this reading: quality {quality.score:.2f}.**{words}"
+    notes = f"; note: {flag_words(quality)}" if quality.flags else ""
     return f" *Quality {quality.score:.2f}{notes}.*"
 
 
-def _first_warning_meaning(quality: ReadingQuality) -> str:
-    """What the first warning flag of ``quality`` means, in words (" *(…)*"), or ""."""
-    named = [flag for flag in quality.flags if flag in WARNING_FLAGS]
-    return f" *({FLAG_MEANINGS[named[0]]}.)*" if named else ""
+def flag_words(quality: ReadingQuality) -> str:
+    """``quality``'s flags in words (:data:`hkpd.prediction.quality.FLAG_MEANINGS`, the one
+    place a flag gets its words), the warning flags first, joined by "; "."""
+    ordered = sorted(quality.flags, key=lambda flag: flag not in WARNING_FLAGS)
+    return "; ".join(FLAG_MEANINGS[flag] for flag in ordered)
