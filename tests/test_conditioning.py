@@ -100,14 +100,15 @@ def test_fit_to_a_bodys_exact_keypoints_recovers_it(body64, scene) -> None:
 def test_removing_a_keypoint_returns_its_joints_concentration_to_the_prior(body64, scene) -> None:
     config = EvidenceConfig(prior_weight=0.3)
     elbow = body_joint_index("left_elbow")
-    prior = MatrixFisher(config.prior_weight * scene["start"].F[0, elbow]).concentration
+    # untempered: nothing reads the elbow once the wrist is hidden (issue 58, evidence_reach)
+    prior = MatrixFisher(scene["start"].F[0, elbow]).concentration
     seen = condition_on_keypoints(body64, scene["start"], _evidence(scene), config)
     unseen = condition_on_keypoints(body64, scene["start"], _evidence(scene, [LEFT_WRIST]), config)
     with_wrist = MatrixFisher(seen.conditioned.F[elbow]).concentration
     without = MatrixFisher(unseen.conditioned.F[elbow]).concentration
     # The wrist sharpens the elbow about the axis that moves it in the image (depth and twist
     # stay with the prior); without it the elbow is back at the prior's concentrations.
-    assert with_wrist.max() > 1.25 * prior.max()
+    assert with_wrist.max() > 1.25 * config.prior_weight * prior.max()
     torch.testing.assert_close(without.sort().values, prior.sort().values, rtol=0.2, atol=0)
 
 

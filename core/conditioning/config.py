@@ -56,6 +56,13 @@ class EvidenceConfig:
             180° about the body's vertical axis (:mod:`hkpd.conditioning.facing`), and keeps
             the lower cost: a person seen from behind is no longer read facing the camera.
             ``1`` fits the starts as read (the fit before issue 42).
+        unread_joint_weight: the prior weight of a joint that no evidence term reads (every
+            keypoint and landmark below it hidden or missing:
+            :mod:`hkpd.conditioning.evidence_reach`). 1 (the default) keeps the network's own
+            spread there: ``prior_weight`` tempers the network because it saw the keypoints the
+            fit weighs again, which a hidden limb's were not. Equal to ``prior_weight``: every
+            joint tempered alike (before issue 58; a hidden forearm's hand was then 1.3× less
+            sure with the evidence than from the network alone).
     """
 
     prior_weight: float = 0.5
@@ -69,10 +76,12 @@ class EvidenceConfig:
     joint_spread: str = "conditional"
     rigid_spread: str = "conditional"
     facings: int = 2
+    unread_joint_weight: float = 1.0
 
     def __post_init__(self) -> None:
         positive = {
             "prior_weight": self.prior_weight,
+            "unread_joint_weight": self.unread_joint_weight,
             "keypoint_sigma": self.keypoint_sigma,
             "robust_scale": self.robust_scale,
             "global_rotation_sigma": self.global_rotation_sigma,

@@ -38,6 +38,7 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.conditioning.config import EvidenceConfig
+from hkpd.conditioning.evidence_reach import unread_joints
 from hkpd.conditioning.evidence_term import EvidenceTerm
 from hkpd.conditioning.facing import facing_starts
 from hkpd.conditioning.fit_objective import FitObjective
@@ -146,9 +147,12 @@ def fit_evidence(
         shape_prior: B full-covariance shape priors instead of the network's.
     """
     objective = FitObjective(body, starts, terms, config, shape_prior)
+    start = objective.start()
+    if config.unread_joint_weight != config.prior_weight:
+        objective.prior.set_unread_joints(unread_joints(objective, start))
     return levenberg_marquardt(
         objective,
-        objective.start(),
+        start,
         max_iterations=config.max_iterations,
         tolerance=config.tolerance,
     )
