@@ -24,6 +24,7 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         "devices": (),
         "interrupts": (),
         "kinematic_tree": (),
+        "model_runtime": ("assets",),
         "uncertainty": (),
         "mirror_symmetry": ("kinematic_tree",),
         "stated_body": (),
