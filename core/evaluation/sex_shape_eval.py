@@ -16,6 +16,7 @@ import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
+import numpy as np
 import torch
 
 from hkpd.body import BodyModel
@@ -25,6 +26,7 @@ from hkpd.conditioning import EvidenceConfig, KeypointEvidence, StatedBody
 from hkpd.evaluation.shape_metrics import shape_scores
 from hkpd.evaluation.test_set import TEST_BATCH_SIZE, TEST_SET_SEED
 from hkpd.prediction.sex_fits import SexFits, fit_each_sex
+from hkpd.prediction.sex_latent import NEUTRAL
 from hkpd.synthesis.detector_noise import DetectorNoise, detector_like_keypoints
 from hkpd.synthesis.generator import RenderedBatch, SyntheticDataGenerator, batch_seed
 
@@ -36,6 +38,10 @@ CALIBRATION_BINS = 10
 
 POSTERIORS = ("automatic", "sex", "sex+height+mass")
 """The three posteriors scored, by what was stated."""
+
+DRAWN = "automatic (drawn)"
+"""The automatic posterior's drawn body: the more probable sex's, or neither sex's
+(:attr:`hkpd.prediction.sex_latent.SexShapes.drawn`) below the sure probability."""
 
 
 def sex_labelled_shapes(body: BodyModel, count: int, seed: int) -> tuple[list[str], torch.Tensor]:
@@ -62,6 +68,7 @@ class _Records:
     stds: dict[str, list[torch.Tensor]] = field(default_factory=dict)
     measured: list[torch.Tensor] = field(default_factory=list)
     measured_std: list[torch.Tensor] = field(default_factory=list)
+    neutral: list[bool] = field(default_factory=list)
 
     def add(self, name: str, fits: SexFits) -> None:
         shapes = fits.shapes
@@ -69,6 +76,10 @@ class _Records:
         self.modes.setdefault(name, []).append(shapes.means[sex].double())
         std = shapes.covariances[sex].diagonal().clamp_min(0).sqrt().double()
         self.stds.setdefault(name, []).append(std)
+        if name == "automatic":  # the body drawn: neither sex's when unsure
+            self.modes.setdefault(DRAWN, []).append(shapes.drawn_mean().double())
+            self.stds.setdefault(DRAWN, []).append(std)
+            self.neutral.append(shapes.drawn == NEUTRAL)
 
 
 def sex_test_batches(
@@ -163,7 +174,7 @@ def _record(
         name: shape_scores(
             body64, torch.stack(records.modes[name]), torch.stack(records.stds[name]), betas
         )
-        for name in POSTERIORS
+        for name in (*POSTERIORS, DRAWN)
     }
     measured = torch.stack(records.measured).double()
     measured_std = torch.stack(records.measured_std).double().clamp_min(1e-9)
@@ -174,6 +185,8 @@ def _record(
             "accuracy": float((probability > 0.5).double().mean()),
             "ece": expected_calibration_error(probability),
             "pve_t_sc_mm": scores["automatic"].pve_t_sc_mm,
+            "drawn_pve_t_sc_mm": scores[DRAWN].pve_t_sc_mm,
+            "drawn_neutral_share": float(np.mean(records.neutral)),
             "examples": len(probability),
         },
         "measurements": {
