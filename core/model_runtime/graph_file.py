@@ -19,6 +19,7 @@ import base64
 import binascii
 import json
 import math
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -132,7 +133,8 @@ def read_graph_file(path: str | Path) -> GraphFile:
 def _read_json(path: Path) -> dict[str, Any]:
     """``model.json``'s top-level object, its size bounded; refuses layers models."""
     with path.open("rb") as file:
-        text = file.read(MAX_JSON_BYTES + 1)
+        size = os.fstat(file.fileno()).st_size
+        text = file.read(min(size, MAX_JSON_BYTES) + 1)
     if len(text) > MAX_JSON_BYTES:
         raise ModelFileError(f"{path}: larger than {MAX_JSON_BYTES:,} bytes, not a model.json")
     try:

@@ -95,7 +95,7 @@ class GraphModel:
         self._check_ops(graph)
         self.output_names = self._default_outputs(graph)
         order = self._topological_order([parse_reference(n) for n in self.output_names])
-        self.inputs = self._input_specs(order)
+        self.inputs = self._input_specs([node.name for node in graph.nodes])
         self._constants: dict[Reference, torch.Tensor] = {}
         self._prepared: dict[str, PreparedOp] = {}
         self._plans: dict[tuple[str, ...], _Plan] = {}
@@ -170,7 +170,8 @@ class GraphModel:
         return order
 
     def _input_specs(self, order: list[str]) -> dict[str, InputSpec]:
-        """The placeholders among ``order`` with their dtype and shape attributes."""
+        """The placeholders among ``order`` with their dtype and shape attributes (every
+        placeholder of the graph: :meth:`run` requires those its outputs need)."""
         specs = {}
         for name in order:
             node = self._nodes[name]
@@ -329,7 +330,7 @@ class GraphModel:
         values: list[torch.Tensor | None] = [None] * plan.slot_count
         for slot, reference in plan.constants:
             values[slot] = self._constants[reference]
-        given = self._checked_inputs(inputs)
+        given = self._checked_inputs(inputs, {name for name, _ in plan.inputs})
         for name, slot in plan.inputs:
             values[slot] = given[name]
         with torch.inference_mode():
@@ -355,13 +356,13 @@ class GraphModel:
             values[slot] = None
 
     def _checked_inputs(
-        self, inputs: Mapping[str, torch.Tensor | np.ndarray]
+        self, inputs: Mapping[str, torch.Tensor | np.ndarray], needed: set[str]
     ) -> dict[str, torch.Tensor]:
         """The inputs by placeholder name, checked against :attr:`inputs` and converted to the
         model's device and dtypes."""
         given = {parse_reference(name)[0]: value for name, value in inputs.items()}
         unknown = sorted(set(given) - set(self.inputs))
-        missing = sorted(set(self.inputs) - set(given))
+        missing = sorted(needed - set(given))
         if unknown or missing:
             raise ValueError(
                 f"{self.path}: inputs {sorted(self.inputs)} expected; unknown {unknown}, "

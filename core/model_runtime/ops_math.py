@@ -4,6 +4,8 @@ numpy broadcasting, integer division rounding down, ``FloorMod`` taking the divi
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import torch
 import torch.nn.functional as functional
 
@@ -62,6 +64,19 @@ _BINARY = {
 """Binary ops: ``output = function(a, b)`` with broadcasting."""
 
 
+def broadcast_shape(first: Sequence[int], second: Sequence[int]) -> list[int]:
+    """numpy's broadcast of two shapes; NodeError if they do not broadcast."""
+    rank = max(len(first), len(second))
+    padded_first = [1] * (rank - len(first)) + list(first)
+    padded_second = [1] * (rank - len(second)) + list(second)
+    shape = []
+    for a, b in zip(padded_first, padded_second, strict=True):
+        if a != b and 1 not in (a, b):
+            raise NodeError(f"the shapes {list(first)} and {list(second)} do not broadcast")
+        shape.append(b if a == 1 else a)
+    return shape
+
+
 @register(*_BINARY)
 def _binary(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
     """``(a, b) -> a ∘ b``, broadcast; the broadcast shape is checked against the size cap."""
@@ -72,11 +87,7 @@ def _binary(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp
         a, b = inputs
         if a.dtype != b.dtype:
             raise NodeError(f"{node.op} of {a.dtype} and {b.dtype}")
-        try:
-            shape = torch.broadcast_shapes(a.shape, b.shape)
-        except RuntimeError as error:
-            raise NodeError(f"shapes {list(a.shape)} and {list(b.shape)}: {error}") from None
-        check_size(shape, "the result")
+        check_size(broadcast_shape(a.shape, b.shape), "the result")
         return (function(a, b),)
 
     return PreparedOp(run)

@@ -110,17 +110,18 @@ def _check_nhwc(node: GraphNode) -> None:
 
 
 def _convolution_runner(node: GraphNode, depthwise: bool) -> Callable[..., torch.Tensor]:
-    """``run(x NHWC, weight torch layout, bias or None) -> y NHWC`` for the node's strides,
-    dilations and padding."""
+    """``run(x NHWC, weight torch layout, bias or None, input channels the kernel expects) ->
+    y NHWC`` for the node's strides, dilations and padding."""
     _check_nhwc(node)
     strides, dilations = _spatial(node, "strides"), _spatial(node, "dilations")
     pads = _window_padding(node)
 
-    def run(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor | None) -> torch.Tensor:
+    def run(
+        x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor | None, expected: int
+    ) -> torch.Tensor:
         if x.dim() != 4:
             raise NodeError(f"the convolution's input has shape {list(x.shape)}, not NHWC")
         channels = x.shape[3]
-        expected = weight.shape[0] if depthwise else weight.shape[1]
         if channels != expected:
             raise NodeError(f"input of {channels} channels for a kernel of {expected}")
         top, bottom, left, right = pads(x.shape[1], x.shape[2], *weight.shape[2:], *strides,
@@ -157,21 +158,23 @@ def _convolution(node: GraphNode, constants: list[torch.Tensor | None]) -> Prepa
     _check_fused_inputs(node, 2, bias_fused, prelu)
     convolve = _convolution_runner(node, depthwise)
     params = {}
+    fixed_channels = None
     if constants[1] is not None:
         params["weight"] = _conv_weight(constants[1], depthwise)
+        fixed_channels = int(constants[1].shape[2])
     if bias_fused and constants[2] is not None:
         params["bias"] = constants[2].reshape(-1)
 
     def run(inputs, params):
-        weight = params.get("weight")
+        weight, channels = params.get("weight"), fixed_channels
         if weight is None:
-            weight = _conv_weight(inputs[1], depthwise)
+            weight, channels = _conv_weight(inputs[1], depthwise), int(inputs[1].shape[2])
         bias = params.get("bias", inputs[2] if bias_fused else None)
         if bias is not None:
             bias = bias.reshape(-1)
             if bias.numel() != weight.shape[0]:
                 raise NodeError(f"a bias of {bias.numel()} for {weight.shape[0]} channels")
-        output = convolve(inputs[0], weight, bias)
+        output = convolve(inputs[0], weight, bias, channels)
         if activation is not None:
             output = activation(output, inputs[3] if prelu else None)
         return (output,)
