@@ -13,9 +13,8 @@ import threading
 from collections import OrderedDict
 
 from hkpd.explorer.body_settings import FIELD_UNITS, LABELS, BodyStatement, in_field_units
-
-SURE_PROBABILITY = 0.9
-"""Below this probability the automatic sex is called "not sure"."""
+from hkpd.prediction.exports.body_summary import sex_statement
+from hkpd.prediction.sex_latent import SURE_SEX_PROBABILITY, SexShapes
 
 _KEPT = 8
 _cache: OrderedDict[int, tuple[object, dict[str, tuple[float, float]]]] = OrderedDict()
@@ -46,24 +45,26 @@ def measurements_of(posterior: object) -> dict[str, tuple[float, float]] | None:
 
 
 def sex_words(posterior: object) -> str | None:
-    """The drawn body's sex in a few words: ``"male (stated)"``, ``"female 62 %, not sure"``,
-    ``"female 94 %"``; None without sexes (the network alone, or a body model without sex
-    priors)."""
+    """The drawn body's sex in a few words, with where it came from
+    (:func:`hkpd.prediction.exports.body_summary.sex_statement`): ``"male (stated)"``,
+    ``"male 96 % from the face"``, ``"not sure (female 58 % from the body's proportions)"``;
+    None without sexes (the network alone, or a body model without sex priors)."""
     probabilities = getattr(posterior, "sex_probabilities", None)
     if not probabilities:
         return None
-    sex = max(probabilities, key=lambda name: (probabilities[name], name == "female"))
     sexes = getattr(posterior, "sexes", None)
+    if isinstance(sexes, SexShapes):
+        return sex_statement(sexes)
+    sex = max(probabilities, key=lambda name: (probabilities[name], name == "female"))
     if getattr(sexes, "stated", False):
         return f"{sex} (stated)"
-    probability = probabilities[sex]
-    sure = "" if probability >= SURE_PROBABILITY else ", not sure"
-    return f"{sex} {probability * 100:.0f} %{sure}"
+    words = f"{sex} {probabilities[sex] * 100:.0f} %"
+    return words if probabilities[sex] >= SURE_SEX_PROBABILITY else f"not sure ({words})"
 
 
 def sex_markdown(posterior: object | None, evidence: bool, can_state: bool) -> str:
-    """The Body section's sex line (markdown): the sex with its probability and, when it is
-    uncertain, plainly so with what to do; or why there is none."""
+    """The Body section's sex line (markdown): the sex with its probability and where it came
+    from and, when it is uncertain, plainly so with what to do; or why there is none."""
     if posterior is None:
         return "**Sex:** no person yet."
     words = sex_words(posterior)
@@ -76,15 +77,15 @@ def sex_markdown(posterior: object | None, evidence: bool, can_state: bool) -> s
                 "keypoints* (Photo and occluders) to weigh the sexes and state what you know."
             )
         return "**Sex:** not estimated for this prediction."
-    if words.endswith("not sure"):
+    if words.startswith("not sure"):
         return (
-            f"**Sex: {words.replace(', not sure', '')} — not sure: pick the sex below.** "
-            "*Keypoints barely tell the sexes apart: the drawn body's shape follows the sex, "
-            "so state it when you know it.*"
+            f"**Sex: {words} — pick the sex below.** *The body drawn is neither sex's (no "
+            "chest or hips of either) until the photo or you say which: keypoints barely tell "
+            "the sexes apart, and no face was read clearly enough.*"
         )
     if words.endswith("(stated)"):
         return f"**Sex: {words}.**"
-    return f"**Sex: {words}** *(from the photo; state it below if it is wrong).*"
+    return f"**Sex: {words}** *(state it below if it is wrong).*"
 
 
 def measurement_markdown(
@@ -111,14 +112,15 @@ def measurement_markdown(
 
 
 def body_sentence(posterior: object) -> str:
-    """One plain sentence for the status line and saved pages' captions, e.g. "Body drawn:
-    female 62 %, not sure (state the sex in Photo › Body); height 169 ± 10 cm, mass 65 ± 15
-    kg. Stated: male, height 185 ± 1 cm."; "" for a posterior without sexes."""
+    """One plain sentence for the status line and saved pages' captions, e.g. "Body drawn: not
+    sure (female 62 % from the body's proportions), neither sex drawn (state the sex in Photo ›
+    Body); height 169 ± 10 cm, mass 65 ± 15 kg. Stated: male, height 185 ± 1 cm."; "" for a
+    posterior without sexes."""
     words = sex_words(posterior)
     if words is None:
         return ""
-    if words.endswith("not sure"):
-        words += " (state the sex in Photo › Body)"
+    if words.startswith("not sure"):
+        words += ", neither sex drawn (state the sex in Photo › Body)"
     parts = [f"Body drawn: {words}"]
     measurements = measurements_of(posterior)
     if measurements:

@@ -228,11 +228,13 @@ def test_the_section_states_the_sex_and_measurements_and_refuses_bad_input() -> 
 def test_the_app_shows_the_uncertain_sex_and_the_measurements(app) -> None:
     assert last_call(app) == (True, None, None)  # nothing stated: the photo decides
     body = app.panels.body
-    assert "female 62 % — not sure: pick the sex below" in body.sex_text.content
+    assert "not sure (female 62 %) — pick the sex below" in body.sex_text.content
+    assert "neither sex's" in body.sex_text.content
     table = body.measurements.content
     assert "| Height |" in table and " cm |" in table and "| Mass |" in table and " kg |" in table
     status = source_text(app.result.posterior)
-    assert "Body drawn: female 62 %, not sure" in status and "height" in status
+    assert "Body drawn: not sure (female 62 %), neither sex drawn" in status
+    assert "height" in status
 
 
 def test_stating_a_sex_and_a_height_predicts_with_them(app) -> None:

@@ -14,15 +14,17 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import torch
 from PIL import Image
 from test_predict_cli import checkpoint, fake_predictor_factory, scene  # noqa: F401 (fixtures)
 
 from hkpd.body.measurements import MEASUREMENT_NAMES
 from hkpd.body_flags import stated_body
 from hkpd.prediction import cli
-from hkpd.prediction.exports.body_summary import body_caption
+from hkpd.prediction.exports.body_summary import body_caption, sex_statement
 from hkpd.prediction.exports.overview import BACKGROUND
 from hkpd.prediction.quality import ReadingQuality
+from hkpd.prediction.sex_latent import SexEvidence, SexShapes
 
 STATED = ["--sex", "male", "--height", "1.85", "--mass", "80", "2"]
 
@@ -265,6 +267,34 @@ def test_the_overview_footer_has_a_line_about_the_body(runs):
 )  # fmt: skip
 def test_the_body_caption(probabilities, stated, measurements, expected):
     assert body_caption(probabilities, stated, measurements) == expected
+
+
+def _sexes(p_male: float, face: float | None, stated: bool = False, doubted: bool = False):
+    means = {"female": torch.zeros(10), "male": torch.ones(10)}
+    covariances = {sex: torch.eye(10) for sex in means}
+    evidence = None if stated else SexEvidence(keypoints=0.41, face=face)
+    probabilities = {"female": 1 - p_male, "male": p_male}
+    return SexShapes(probabilities, means, covariances, stated, evidence=evidence,
+                     doubted=doubted)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "sexes, expected",
+    [
+        (_sexes(0.96, 0.98), "male 96 % from the face"),
+        (_sexes(0.85, None), "male 85 % from the body's proportions"),
+        (_sexes(0.42, None), "not sure (female 58 % from the body's proportions)"),
+        (_sexes(0.93, 0.97, doubted=True),
+         "not sure (male 93 % from the face, but this reading is in doubt)"),
+        (_sexes(1.0, None, stated=True), "male (stated)"),
+        (None, None),
+    ],
+)  # fmt: skip
+def test_the_sex_says_where_it_came_from(sexes, expected):
+    assert sex_statement(sexes) == expected
+    if sexes is not None:
+        caption = body_caption(sexes.probabilities, sexes.stated, {}, sex_statement(sexes))
+        assert caption == f"body: {expected}"
 
 
 def test_the_stated_body_flags_are_listed_in_the_help(capsys):

@@ -2,7 +2,9 @@
 measurements with their stds, and what the user stated.
 
 - :func:`body_summary`: the ``summary.json`` keys ``"drawn_sex"``, ``"sex_probabilities"``,
-  ``"measurements"`` and ``"stated"``;
+  ``"sex_evidence"``, ``"measurements"`` and ``"stated"``;
+- :func:`sex_statement`: the sex in words with where it came from (the face, the body's
+  proportions, stated) or that it is not sure, shared with the explorer;
 - :func:`body_caption`: the overview's line, e.g. ``"body: male 87 %, height 1.78 ± 0.05 m,
   mass 73 ± 6 kg"`` (``"male (stated)"`` for a stated sex);
 - :func:`body_arrays`: the ``prediction.npz`` arrays of the sexes and measurements
@@ -61,18 +63,31 @@ def body_summary(posterior: BodyPosterior, measurements: Measurements) -> dict[s
         measurements: ``posterior.measurements()`` (passed in: it is computed once per photo).
 
     Returns:
-        ``"drawn_sex"``: the sex whose body the mode and the overview draw (None without sexes);
-        ``"sex_probabilities"``: ``{"female": p, "male": 1 - p}`` or None (the network's own
-        posterior, or a body model without sex priors); ``"measurements"``:
+        ``"drawn_sex"``: whose body the mode and the overview draw: a sex, or ``"neutral"``
+        when no sex is sure (None without sexes); ``"sex_probabilities"``:
+        ``{"female": p, "male": 1 - p}`` or None (the network's own posterior, or a body model
+        without sex priors); ``"sex_evidence"``: ``{"face": p_male or None, "keypoints":
+        p_male}``, what each source says alone (None when stated); ``"measurements"``:
         :func:`measurement_summary`; ``"stated"``: :func:`stated_summary`.
     """
     probabilities = posterior.sex_probabilities
     return {
-        "drawn_sex": posterior.sex,
+        "drawn_sex": posterior.drawn_sex,
         "sex_probabilities": None if probabilities is None else dict(probabilities),
+        "sex_evidence": posterior.sex_evidence,
         "measurements": measurement_summary(measurements),
         "stated": stated_summary(posterior.stated),
     }
+
+
+SEX_SOURCE_WORDS = {"face": "from the face", "keypoints": "from the body's proportions"}
+"""Where an automatic sex came from, in words (:attr:`SexEvidence.source`)."""
+
+
+def _percent(sex: str, probability: float) -> str:
+    """``"male 87 %"``, ``"female > 99 %"``."""
+    percent = 100.0 * probability
+    return f"{sex} > 99 %" if percent > 99.5 else f"{sex} {percent:.0f} %"
 
 
 def _sex_text(probabilities: Mapping[str, float] | None, stated: bool) -> str | None:
@@ -80,10 +95,25 @@ def _sex_text(probabilities: Mapping[str, float] | None, stated: bool) -> str | 
     if not probabilities:
         return None
     sex = max(SEX_NAMES, key=lambda name: (probabilities[name], name == "female"))
-    if stated:
+    return f"{sex} (stated)" if stated else _percent(sex, probabilities[sex])
+
+
+def sex_statement(sexes: SexShapes | None) -> str | None:
+    """What the drawn body says of the sex, and why: ``"male (stated)"``, ``"male 96 % from the
+    face"``, ``"not sure (female 58 % from the body's proportions)"``, ``"not sure (male 93 %
+    from the face, but this reading is in doubt)"``; None without sexes."""
+    if sexes is None:
+        return None
+    sex = sexes.most_probable
+    if sexes.stated:
         return f"{sex} (stated)"
-    percent = 100.0 * probabilities[sex]
-    return f"{sex} > 99 %" if percent > 99.5 else f"{sex} {percent:.0f} %"
+    said = _percent(sex, sexes.probabilities[sex])
+    if sexes.evidence is not None:
+        said += " " + SEX_SOURCE_WORDS[sexes.evidence.source]
+    if sexes.sure:
+        return said
+    doubt = ", but this reading is in doubt" if sexes.doubted else ""
+    return f"not sure ({said}{doubt})"
 
 
 def _plus_minus(mean: float, std: float, decimals: int, unit: str) -> str:
@@ -94,17 +124,21 @@ def _plus_minus(mean: float, std: float, decimals: int, unit: str) -> str:
 
 
 def body_caption(
-    probabilities: Mapping[str, float] | None, sex_stated: bool, measurements: Measurements
+    probabilities: Mapping[str, float] | None,
+    sex_stated: bool,
+    measurements: Measurements,
+    sex_words: str | None = None,
 ) -> str:
-    """The overview's line about the body: the more probable sex (the one drawn) with its
-    probability, then height and mass with ± one std.
+    """The overview's line about the body: the more probable sex with its probability (or
+    ``sex_words``, :func:`sex_statement`'s), then height and mass with ± one std.
 
     Args:
         probabilities: ``{"female": p, "male": 1 - p}`` or None (no sex latent: not shown).
         sex_stated: the sex was stated by the user (shown as ``"(stated)"``).
         measurements: ``{name: (mean, std)}``; height and mass are shown when present.
+        sex_words: the sex in words, with where it came from; None: from ``probabilities``.
     """
-    parts = [_sex_text(probabilities, sex_stated)]
+    parts = [sex_words if sex_words is not None else _sex_text(probabilities, sex_stated)]
     if "height_m" in measurements:
         parts.append("height " + _plus_minus(*measurements["height_m"], 2, "m"))
     if "mass_kg" in measurements:
@@ -116,7 +150,8 @@ def body_caption(
 def posterior_caption(posterior: BodyPosterior, measurements: Measurements) -> str:
     """:func:`body_caption` of a posterior."""
     stated = posterior.sexes is not None and posterior.sexes.stated
-    return body_caption(posterior.sex_probabilities, stated, measurements)
+    words = sex_statement(posterior.sexes)
+    return body_caption(posterior.sex_probabilities, stated, measurements, words)
 
 
 def measurement_arrays(measurements: Measurements) -> dict[str, np.ndarray]:
