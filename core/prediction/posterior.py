@@ -28,7 +28,7 @@ from hkpd.distributions import BodyDistribution, KinematicMatrixFisher
 from hkpd.kinematic_tree import BODY_JOINT_NAMES, body_joint_index
 from hkpd.prediction.posterior_summaries import part_uncertainty, posterior_log_prob
 from hkpd.prediction.quality import ReadingQuality, reading_quality
-from hkpd.prediction.sex_latent import gaussian_measurements
+from hkpd.prediction.sex_latent import FaceWord, gaussian_measurements
 from hkpd.uncertainty import vertex_uncertainty
 
 if TYPE_CHECKING:
@@ -141,6 +141,8 @@ class BodyPosterior:
             and samples come from the mixture. None for the network's own posterior and for
             body models without sex priors.
         stated: what the user stated about the person (sex, measurements), or None.
+        face: what the face said (:class:`hkpd.prediction.sex_latent.FaceWord`: its calibrated
+            P(male) or why it said nothing, its apparent age); None when it was not read.
         turned: this is the turned-around reading (:meth:`turned_around`).
         turner: makes the turned-around posterior (set by the predictor).
     """
@@ -159,6 +161,7 @@ class BodyPosterior:
     mirror_read: bool = False
     sexes: SexShapes | None = None
     stated: StatedBody | None = None
+    face: FaceWord | None = None
     turned: bool = False
     turner: Callable[[BodyPosterior], BodyPosterior] | None = field(
         default=None, repr=False, compare=False

@@ -176,6 +176,8 @@ FLAG_MEANINGS: dict[str, str] = {
     "face the other way",
     "facing_ambiguous": "the face is weakly seen: the person may face the other way (the "
     "turned-around reading may fit better)",
+    "looks_like_a_child": "the face looks like a child's: the body model is adult-only, so the "
+    "body drawn is an adult's",
 }
 """Every flag :func:`reading_quality` may set, and what it means: plain words a class reads
 (the explorer's status line and captions show these, never the flag names)."""
@@ -309,6 +311,7 @@ def reading_flags(posterior: BodyPosterior, signals: dict[str, float]) -> tuple[
             or (fit is not None and posterior.conditioned and (fit.turned or fit.start == 1))
         ),
         "facing_ambiguous": facing_ambiguous(confidences),
+        "looks_like_a_child": posterior.face is not None and posterior.face.child,
     }
     return tuple(name for name in FLAG_MEANINGS if raised[name])
 

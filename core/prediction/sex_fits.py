@@ -27,7 +27,22 @@ from hkpd.conditioning import (
 )
 from hkpd.distributions import BodyDistribution
 from hkpd.prediction.posterior import BodyPosterior
-from hkpd.prediction.sex_latent import NEUTRAL, SexEvidence, SexShapes, sex_probabilities
+from hkpd.prediction.sex_latent import (
+    NEUTRAL,
+    FaceWord,
+    SexEvidence,
+    SexShapes,
+    sex_probabilities,
+)
+
+__all__ = [
+    "FaceWord",
+    "SexFits",
+    "fit_each_sex",
+    "sex_shape_priors",
+    "with_drawn_shape",
+    "with_sex_shape",
+]
 
 
 @dataclass(frozen=True)
@@ -123,15 +138,6 @@ def fit_each_sex(
         evidence=evidence,
     )
     return SexFits(fits, priors, shapes)
-
-
-@dataclass(frozen=True)
-class FaceWord:
-    """What the face said of the sex: ``p_male`` (calibrated, in (0, 1)) or None with the
-    ``reason`` it said nothing (None reason: the face was not read)."""
-
-    p_male: float | None = None
-    reason: str | None = None
 
 
 def with_drawn_shape(posterior: BodyPosterior) -> BodyPosterior:

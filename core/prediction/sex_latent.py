@@ -42,6 +42,18 @@ NEUTRAL = "neutral"
 
 
 @dataclass(frozen=True)
+class FaceWord:
+    """What the face said of the sex: ``p_male`` (calibrated, in (0, 1)) or None with the
+    ``reason`` it said nothing, in words (None reason: the face was not read); the face's
+    apparent ``age_years`` (None: unknown) and whether that is a ``child``'s."""
+
+    p_male: float | None = None
+    reason: str | None = None
+    age_years: float | None = None
+    child: bool = False
+
+
+@dataclass(frozen=True)
 class SexEvidence:
     """Where the sex's probability came from, each source on its own.
 
