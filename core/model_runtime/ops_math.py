@@ -126,7 +126,7 @@ def _leaky_relu(node: GraphNode, constants: list[torch.Tensor | None]) -> Prepar
     """``x -> x if x ≥ 0 else alpha·x`` (attribute ``alpha``, TF's default 0.2)."""
     expect_inputs(node, 1)
     alpha = attribute(node, "alpha", (float, int), 0.2)
-    return simple(lambda x: torch.where(x < 0, x * alpha, x))
+    return simple(lambda x: functional.leaky_relu(x, float(alpha)))
 
 
 @register("Prelu")

@@ -51,7 +51,7 @@ def _fused_activation(node: GraphNode) -> tuple[bool, Activation | None, bool]:
         "Elu": lambda x, a: functional.elu(x),
         "Sigmoid": lambda x, a: torch.sigmoid(x),
         "Tanh": lambda x, a: torch.tanh(x),
-        "LeakyRelu": lambda x, a: torch.where(x < 0, x * alpha, x),
+        "LeakyRelu": lambda x, a: functional.leaky_relu(x, alpha),
         "Prelu": lambda x, a: torch.where(x < 0, x * a, x),
     }
     if fused[1] not in activations:
