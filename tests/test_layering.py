@@ -40,7 +40,7 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         ),
         "prediction": (
             "assets", "body", "body_flags", "camera_conventions", "coco_keypoints",
-            "conditioning", "devices", "stated_body",
+            "conditioning", "devices", "model_runtime", "stated_body",
             "distributions", "interrupts", "kinematic_tree", "mirror_symmetry", "network",
             "proxy", "rendering", "uncertainty",
         ),
