@@ -4,6 +4,7 @@ moments (during the imports, once the model is loaded, between photos) with one 
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -210,10 +211,13 @@ def test_ctrl_c_stops_hkpd_predict_with_one_line_and_no_partial_output(photos, t
     assert stderr.rstrip().endswith(lines[0])
     left = sorted(path.name for path in out.iterdir()) if out.exists() else []
     assert not any(name.startswith(".") for name in left)  # no .photo_N.partial folder
-    for name in left:  # every folder there is a finished one
+    folders = [name for name in left if name != "index.jsonl"]
+    for name in folders:  # every folder there is a finished one
         assert (out / name / "summary.json").is_file() and (out / name / "overview.png").is_file()
     if when == "between":
-        assert left  # the reported photo stays
+        assert folders  # the reported photo stays, and is in the index
+        indexed = [json.loads(line) for line in (out / "index.jsonl").read_text().splitlines()]
+        assert {record["folder"] for record in indexed if record["status"] == "ok"} >= set(folders)
     if when == "import":
         assert not out.exists()
 

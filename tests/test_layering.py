@@ -24,6 +24,7 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         "devices": (),
         "interrupts": (),
         "kinematic_tree": (),
+        "launch": (),
         "model_runtime": ("assets",),
         "uncertainty": (),
         "mirror_symmetry": ("kinematic_tree",),
@@ -41,7 +42,7 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         "prediction": (
             "assets", "body", "body_flags", "camera_conventions", "coco_keypoints",
             "conditioning", "devices", "model_runtime", "stated_body",
-            "distributions", "interrupts", "kinematic_tree", "mirror_symmetry", "network",
+            "distributions", "interrupts", "kinematic_tree", "launch", "mirror_symmetry", "network",
             "proxy", "rendering", "uncertainty",
         ),
         # the training side
@@ -57,8 +58,8 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         ),
         "training": (
             "alignment", "body", "camera_conventions", "cpu_allocator", "devices",
-            "distributions", "evaluation", "interrupts", "kinematic_tree", "network", "poses",
-            "proxy", "synthesis",
+            "distributions", "evaluation", "interrupts", "kinematic_tree", "launch", "network",
+            "poses", "proxy", "synthesis",
         ),
         # the browser app: the model and the prediction, never the training side
         "explorer": (

@@ -172,8 +172,26 @@ def test_files_written(run_result):
     assert {"overview.png", "prediction.npz", "summary.json", "person_mask.png"} <= {
         p.name for p in folder.iterdir()
     }
-    # Failed photos leave no folder behind.
-    assert sorted(p.name for p in run_result["out"].iterdir()) == ["person"]
+    # Failed photos leave no folder behind: only the result folder and the index.
+    assert sorted(p.name for p in run_result["out"].iterdir()) == ["index.jsonl", "person"]
+
+
+def test_the_index_has_a_line_per_photo_with_its_status(run_result, photos):
+    lines = (run_result["out"] / "index.jsonl").read_text().splitlines()
+    records = {record["photo"]: record for record in map(json.loads, lines)}
+    assert len(lines) == 5 and set(records) == {
+        "inner/person.png", "blank.jpg", "corrupt.jpg", str(photos["missing"]), str(photos["text"])
+    }  # fmt: skip
+    person = records["inner/person.png"]
+    summary = json.loads((run_result["out"] / "person" / "summary.json").read_text())
+    assert person["folder"] == "person" and person["status"] == "ok"
+    assert person["quality"] == summary["quality"]["score"]
+    assert person["flags"] == summary["quality"]["flags"]
+    assert person["sex_probabilities"] == summary["sex_probabilities"]
+    assert person["files"] == len(summary["files"]) and person["seconds"] > 0
+    assert records["blank.jpg"]["status"] == "no person"
+    assert records["corrupt.jpg"]["status"].startswith("error: ")
+    assert records["corrupt.jpg"]["quality"] is None and records["corrupt.jpg"]["folder"]
 
 
 def test_meshes_are_in_the_display_frame_with_uncertainty_colours(run_result):

@@ -52,7 +52,8 @@ def test_same_person_writes_the_combined_shape(
     last = output.out.strip().splitlines()[-1]
     assert "2 of 3 photos done, 1 failed" in last
     assert "combined shape of 2 photo(s)" in last and str(out / "same_person_shape") in last
-    assert sorted(p.name for p in out.iterdir()) == ["again", "front", "same_person_shape"]
+    left = sorted(p.name for p in out.iterdir())
+    assert left == ["again", "front", "index.jsonl", "same_person_shape"]
 
     folder = out / "same_person_shape"
     summary = json.loads((folder / "shape.json").read_text())

@@ -6,7 +6,8 @@ Usage::
                  [--format ply|glb|obj|npz ...] [--bbox X0 Y0 X1 Y1] [--device auto] [--seed 0]
                  [--uncertainty-samples 100] [--same-person] [--silhouette-evidence] [--overwrite]
                  [--sex female|male] [--height M [STD]] [--mass KG [STD]] [--chest M [STD]]
-                 [--waist M [STD]] [--hip M [STD]] [--shoulder-width M [STD]]
+                 [--waist M [STD]] [--hip M [STD]] [--shoulder-width M [STD]] [--resume] [-v]
+    torchrun --standalone --nproc_per_node N --no-python hkpd-predict PHOTOS... --out DIR
 
 ``--sex`` and the measurement flags state what is known of the person
 (:mod:`hkpd.body_flags`); they condition the shape of every photo (and so of the
@@ -40,6 +41,11 @@ Mesh files are in a Y-up display frame (``(x, -y, -z)`` of the camera-aligned bo
 :mod:`hkpd.prediction.exports.writers`). A photo that fails (missing, not an image, no person) is
 reported on one line and skipped; the exit status is 1 when any failed, 2 for a usage error or
 a model that cannot be loaded.
+
+``DIR/index.jsonl`` gets one line per photo (per person with ``--all-people``): its folder,
+status, quality score and flags, sex probabilities and time. Under ``torchrun`` the photos are
+split among the processes; ``--resume`` finishes a run that was stopped or killed
+(:mod:`hkpd.prediction.dataset_run`, which also says why every process then exits 0).
 """
 
 from __future__ import annotations
@@ -60,6 +66,17 @@ from PIL import Image
 
 from hkpd.body_flags import MEASUREMENT_FLAGS, add_body_arguments, stated_body
 from hkpd.interrupts import deferred_interrupts, interrupted, raise_if_interrupted
+from hkpd.prediction.dataset_run import (
+    INDEX_FILE,
+    REPLACED_SUFFIX,
+    DatasetRun,
+    RunCounts,
+    RunProgress,
+    Shard,
+    add_dataset_arguments,
+    is_complete,
+    photo_labels,
+)
 from hkpd.prediction.detection.keypoint_detector import people_by_size
 from hkpd.prediction.exports.body_summary import body_arrays, body_summary, posterior_caption
 from hkpd.prediction.exports.combined_shape import CombinedBody, write_combined_shape
@@ -115,7 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--overwrite",
         action="store_true",
         help="replace a photo's existing results in --out (they are removed first); without "
-        "it, an existing non-empty result folder is an error",
+        "it (or --resume), an existing non-empty result folder is an error",
     )
     parser.add_argument("--model", default=None, help="checkpoint (default: the shipped model)")
     parser.add_argument(
@@ -180,6 +197,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--device", default="auto", help="auto (CUDA when available), cpu, cuda")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the samples")
     add_body_arguments(parser)
+    add_dataset_arguments(parser)
     return parser
 
 
@@ -276,6 +294,8 @@ class PhotoResult:
     person_box: tuple[float, ...] | None = None
     note: str | None = None
     shape: PhotoShape | None = None
+    no_person: bool = False
+    """The photo failed because no person was found in it."""
 
 
 def _timed(timings: dict[str, float], name: str, start: float) -> float:
@@ -575,6 +595,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         formats, bbox = _checked_options(args)
         stated = _checked_stated(args)
+        shard = _checked_shard(args)
     except UsageError as error:
         parser.print_usage(sys.stderr)
         print(f"{PROG}: error: {error}", file=sys.stderr)
@@ -585,12 +606,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     names = output_names(images)
     combined_name = _free_name(SAME_PERSON_FOLDER, names)
-    folders = [args.out / name for name in names]
-    taken = _existing_results(folders + ([args.out / combined_name] if args.same_person else []))
-    if taken and not args.overwrite:
-        shown = ", ".join(str(folder) for folder in taken[:3]) + (" ..." if len(taken) > 3 else "")
-        print(f"{PROG}: error: {len(taken)} result folder(s) already exist ({shown}); pass "
-              "--overwrite to replace them, or choose another --out", file=sys.stderr)  # fmt: skip
+    own = shard.own(images)  # this process's photos (all of them without torchrun)
+    if _refused_existing(args, [names[i] for i in own] + [combined_name] * args.same_person):
         return 2
     created_out = not args.out.exists()
     try:
@@ -606,7 +623,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     grad_was_enabled = torch.is_grad_enabled()
     torch.set_grad_enabled(False)  # restored below: main() may be called from Python
     scale = UncertaintyColourScale()
-    results: list[PhotoResult] = []
+    results: list[PhotoResult] | None = [] if args.same_person else None  # only what is used
+    run = DatasetRun(args.out, shard, names, photo_labels(args.inputs, images), args.resume)
 
     def predict_into(folder: Path, image: Path, box: Sequence[float] | None = bbox) -> PhotoResult:
         return _predict_into(
@@ -626,26 +644,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
 
     try:
-        jobs = [(image, name, bbox) for image, name in zip(images, names, strict=True)]
-        if args.all_people:
-            jobs = _people_jobs(predictor, jobs, results)
-        _predict_all(predict_into, jobs, args.out, results)
+        jobs = [(images[i], names[i], bbox) for i in own]
+        people = predictor if args.all_people else None
+        counts = _predict_all(predict_into, jobs, args.out, results, run, people, args.verbose)
         combined = None
-        if args.same_person:
+        if results is not None:  # --same-person
             combined = _combine_into(
                 args.out / combined_name, predictor, results, formats, scale, stated
             )
     except KeyboardInterrupt:
+        run.interrupted()
         if created_out and args.out.is_dir() and not any(args.out.iterdir()):
             args.out.rmdir()  # nothing was written: leave no empty folder behind
-        return interrupted(PROG, f" after {len(results)} of {len(images)} photos; the folders "
-                           "written so far are complete, nothing is half-written")  # fmt: skip
+        return interrupted(PROG, f" after {run.photos_finished} of {len(own)} photos; the "
+                           "folders written so far are complete, nothing is half-written (--resume "
+                           "finishes the run)")  # fmt: skip
     finally:
         torch.set_grad_enabled(grad_was_enabled)
         closer = getattr(predictor, "close", None)
         if closer is not None:
             closer()
-    return _final_report(args.out, results, combined)
+    return _final_report(args.out, counts, combined, shard.world_size)
 
 
 def _checked_options(
@@ -673,8 +692,35 @@ def _checked_options(
             "--all-people predicts every person in their own box: it goes with neither --bbox "
             "(one person) nor --same-person (one person in every photo)"
         )
+    if args.resume and (args.overwrite or args.same_person):
+        raise UsageError(
+            "--resume keeps the complete results of an earlier run: it goes with neither "
+            "--overwrite (which replaces them) nor --same-person (which combines one run's photos)"
+        )
     check_out_folder(args.out)
     return formats, bbox
+
+
+def _checked_shard(args: argparse.Namespace) -> Shard:
+    """This process's share of the photos (:class:`~hkpd.prediction.dataset_run.Shard`: all of
+    them without torchrun), checked against the options that need every photo in one process;
+    under torchrun ``args.device`` becomes the rank's own and torch gets its share of threads.
+
+    Raises:
+        UsageError: torchrun's variables do not fit, or ``--same-person`` under torchrun.
+    """
+    try:
+        shard = Shard.from_environment()
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if args.same_person and shard.world_size > 1:
+        raise UsageError(
+            "--same-person combines every photo's shape in one process: run it without "
+            "torchrun (or predict under torchrun first, then combine in one process)"
+        )
+    args.device = shard.device(args.device)
+    shard.configure_threads(args.device)
+    return shard
 
 
 def _checked_stated(args: argparse.Namespace) -> StatedBody:
@@ -747,88 +793,166 @@ def _loaded_or_reported(args: argparse.Namespace) -> Predictor | None:
         return None
 
 
-def _people_jobs(
-    predictor: Predictor,
-    jobs: Sequence[tuple[Path, str, Sequence[float] | None]],
-    results: list[PhotoResult],
+def _photo_jobs(
+    people_finder: Predictor | None,
+    image: Path,
+    name: str,
+    box: Sequence[float] | None,
+    run: DatasetRun,
+    progress: RunProgress,
 ) -> list[tuple[Path, str, Sequence[float] | None]]:
-    """``--all-people``: one job per person the detector finds in each photo, larger people
-    first (the Person menu's order), into ``NAME/person_K``; a photo whose people cannot be
-    looked for, or where nobody is found, is reported as failed."""
-    expanded = []
-    for image, name, _ in jobs:
-        raise_if_interrupted()
-        try:
-            people = people_by_size(predictor.detector.detect_all(image))
-        except _expected_errors() as error:
-            results.append(PhotoResult(image=image, error=_one_line(error)))
-            print(f"{PROG}: FAILED {image}: {_one_line(error)}", file=sys.stderr)
-            continue
-        if not people:
-            results.append(PhotoResult(image=image, error="no person was found"))
-            print(f"{PROG}: FAILED {image}: no person was found", file=sys.stderr)
-        for index, person in enumerate(people, start=1):
-            box = tuple(float(v) for v in person.person_box)
-            expanded.append((image, f"{name}/person_{index}", box))
-    return expanded
+    """The ``(image, folder name, bbox)`` jobs of one photo: itself, or with ``--all-people``
+    (``people_finder``: the predictor whose detector looks) one per person the detector
+    finds, larger people first (the Person menu's order), into ``NAME/person_K``. A photo
+    whose people cannot be looked for, or where nobody is found, is recorded as failed."""
+    if people_finder is None:
+        return [(image, name, box)]
+    started = time.perf_counter()
+    try:
+        people = people_by_size(people_finder.detector.detect_all(image))
+    except _expected_errors() as error:
+        failure = _failure(image, error)
+    else:
+        if people:
+            return [
+                (image, f"{name}/person_{index}", tuple(float(v) for v in person.person_box))
+                for index, person in enumerate(people, start=1)
+            ]
+        failure = PhotoResult(image=image, error="no person was found", no_person=True)
+    run.record(name, failure.error, failure.no_person, time.perf_counter() - started)
+    progress.say(f"{PROG}: FAILED {image}: {failure.error}", failed=True)
+    return []
 
 
 def _predict_all(
     predict_into: Callable[[Path, Path, Sequence[float] | None], PhotoResult],
     photos: Sequence[tuple[Path, str, Sequence[float] | None]],
     out: Path,
-    results: list[PhotoResult],
-) -> None:
-    """``predict_into(out / name, image, bbox)`` for every ``(image, name, bbox)``, appending
-    each result to ``results`` and reporting it on one line (a photo that fails is reported
-    and skipped)."""
-    from tqdm import tqdm
-
-    expected = _expected_errors()
+    results: list[PhotoResult] | None,
+    run: DatasetRun,
+    people_finder: Predictor | None = None,
+    verbose: bool = False,
+) -> RunCounts | None:
+    """After :meth:`DatasetRun.begin`, ``predict_into(out / name, image, bbox)`` for every
+    ``(image, name, bbox)`` (every person of it with ``people_finder``, :func:`_photo_jobs`)
+    whose results are not complete already (``--resume``), recording each in ``run``'s index,
+    appending it to ``results`` (when given) and reporting it on one line (a photo that fails
+    is reported and skipped). Then :meth:`DatasetRun.finish`: the run's counts (rank 0), None
+    on the other ranks. The progress bar counts photos, not people."""
     progress = None
+    run.begin([name for _, name, _ in photos])
     try:
         with deferred_interrupts():  # a Ctrl-C while the bar is first drawn waits for it
-            progress = tqdm(photos, desc=PROG, unit="photo", file=sys.stderr)
-        for image, name, box in progress:
+            progress = RunProgress(run, len(photos), PROG, verbose)
+        for image, name, box in photos:
             raise_if_interrupted()  # a Ctrl-C some library caught during the last photo
-            try:
-                result = predict_into(out / name, image, box)
-            except expected as error:
-                result = PhotoResult(image=image, error=_one_line(error))
-            except Exception as error:  # unexpected: still one line, and go on
-                result = PhotoResult(image=image, error=f"{type(error).__name__}: {error}")
-            if result.error is not None and result.error.startswith(f"{image}: "):
-                result.error = result.error[len(f"{image}: ") :]  # the path is said once
-            results.append(result)
-            if result.error is not None:
-                tqdm.write(f"{PROG}: FAILED {image}: {result.error}", file=sys.stderr)
-            else:
-                box = ", ".join(f"{value:.0f}" for value in result.person_box or ())
-                tqdm.write(
-                    f"{image}: person at bbox ({box}) -> {result.folder} ({result.seconds:.1f} s)"
-                    + (f" [{result.note}]" if result.note else ""),
-                    file=sys.stdout,
-                )
+            for person_image, folder, person_box in _photo_jobs(
+                people_finder, image, name, box, run, progress
+            ):
+                if run.complete(folder):
+                    continue
+                result = _predicted(predict_into, out / folder, person_image, person_box)
+                run.record(folder, result.error, result.no_person, result.seconds)
+                if results is not None:
+                    results.append(result)
+                progress.say(_result_line(result), failed=result.error is not None)
+            progress.photo_done()
+        return run.finish(progress, all_people=people_finder is not None)
     finally:
         if progress is not None:  # the bar's line ends, also on a Ctrl-C: its line follows
             progress.close()
 
 
-def _final_report(out: Path, results: Sequence[PhotoResult], combined: str | None) -> int:
-    """Print the closing line; the exit status (1 when a photo or the combined shape failed)."""
-    failed = [result for result in results if result.error is not None]
-    done = len(results) - len(failed)
-    files = sum(len(result.files) for result in results if result.error is None)
-    written = f"wrote {files} files in {done} folder(s) under {out}" if done else "nothing written"
+def _predicted(
+    predict_into: Callable[[Path, Path, Sequence[float] | None], PhotoResult],
+    folder: Path,
+    image: Path,
+    box: Sequence[float] | None,
+) -> PhotoResult:
+    """``predict_into(folder, image, box)``, or the result saying in one line why it failed."""
+    started = time.perf_counter()
+    try:
+        return predict_into(folder, image, box)
+    except Exception as error:  # unexpected ones too: still one line, and go on
+        result = _failure(image, error)
+    result.seconds = time.perf_counter() - started
+    return result
+
+
+def _failure(image: Path, error: Exception) -> PhotoResult:
+    """The result of a photo that failed with ``error``, said in one line (the photo's path
+    once, in front of it; the error's type for an unexpected one)."""
+    from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError
+
+    expected = isinstance(error, _expected_errors())
+    message = _one_line(error) if expected else f"{type(error).__name__}: {error}"
+    if message.startswith(f"{image}: "):
+        message = message[len(f"{image}: ") :]
+    return PhotoResult(image=image, error=message, no_person=isinstance(error, NoPersonFoundError))
+
+
+def _result_line(result: PhotoResult) -> str:
+    """The console line of one photo (or person): where the results went, or why it failed."""
+    if result.error is not None:
+        return f"{PROG}: FAILED {result.image}: {result.error}"
+    box = ", ".join(f"{value:.0f}" for value in result.person_box or ())
+    note = f" [{result.note}]" if result.note else ""
+    return (
+        f"{result.image}: person at bbox ({box}) -> {result.folder} ({result.seconds:.1f} s){note}"
+    )
+
+
+def _final_report(
+    out: Path, counts: RunCounts | None, combined: str | None, world_size: int = 1
+) -> int:
+    """Print the closing line (rank 0: photos, and people with ``--all-people``, over all
+    ranks); the exit status: 1 when a photo or the combined shape failed; under torchrun 0
+    once the run is complete (failures are in the index: a non-zero status would make
+    torchrun report the whole launch as failed)."""
+    if counts is None:  # another rank: rank 0 reports for all
+        return 0
+    folders = counts.photos_done if counts.people_done is None else counts.people_done
+    written = (
+        f"wrote {counts.files} files in {folders} folder(s) under {out}; index {out / INDEX_FILE}"
+        if folders
+        else "nothing written"
+    )
     if combined is not None:
         written += f"; {combined}"
-    print(f"{PROG}: {done} of {len(results)} photos done, {len(failed)} failed; {written}")
-    return 1 if failed or (combined or "").startswith("combined shape FAILED") else 0
+    print(f"{PROG}: {counts.describe()}; {written}")
+    failed = counts.photos_failed or (combined or "").startswith("combined shape FAILED")
+    return 1 if failed and world_size == 1 else 0
 
 
-def _existing_results(folders: Sequence[Path]) -> list[Path]:
-    """The folders that already hold something (a previous run's results)."""
-    return [folder for folder in folders if folder.exists() and any(folder.iterdir())]
+def _existing_results(folders: Sequence[Path], resume: bool = False) -> list[Path]:
+    """The folders that already hold something (a previous run's results); with ``resume``
+    only those that are not complete results (complete ones are skipped, not replaced)."""
+    return [
+        folder
+        for folder in folders
+        if folder.exists() and any(folder.iterdir()) and not (resume and is_complete(folder))
+    ]
+
+
+def _refused_existing(args: argparse.Namespace, names: Sequence[str]) -> bool:
+    """Whether this process's result folders ``names`` under ``--out`` hold something it may
+    not replace (said on stderr): results, without ``--overwrite`` or ``--resume``; with
+    ``--resume``, a non-empty folder that is not a complete result (with ``--all-people`` a
+    photo's folder holds its people's folders: those are checked as they come)."""
+    if args.overwrite or (args.resume and args.all_people):
+        return False
+    taken = _existing_results([args.out / name for name in names], args.resume)
+    if not taken:
+        return False
+    shown = ", ".join(str(folder) for folder in taken[:3]) + (" ..." if len(taken) > 3 else "")
+    if args.resume:
+        print(f"{PROG}: error: {len(taken)} folder(s) in --out are not complete results "
+              f"({shown}); move them away, or pass --overwrite", file=sys.stderr)  # fmt: skip
+    else:
+        print(f"{PROG}: error: {len(taken)} result folder(s) already exist ({shown}); pass "
+              "--resume to keep them and predict the rest, --overwrite to replace them, or "
+              "choose another --out", file=sys.stderr)  # fmt: skip
+    return True
 
 
 def _free_name(name: str, taken: Sequence[str]) -> str:
@@ -849,9 +973,12 @@ def _written_atomically(folder: Path, write: Callable[[Path], _Written]) -> _Wri
         written = write(partial)
         raise_if_interrupted()  # a Ctrl-C swallowed while writing: the partial folder goes
         with deferred_interrupts():  # Ctrl-C now waits: never half-replaced
-            if folder.exists():
-                shutil.rmtree(folder)
+            replaced = folder.with_name(f".{folder.name}{REPLACED_SUFFIX}")
+            if folder.exists():  # moved aside whole first: a kill leaves no half folder
+                shutil.rmtree(replaced, ignore_errors=True)
+                folder.rename(replaced)
             partial.rename(folder)
+            shutil.rmtree(replaced, ignore_errors=True)
     finally:
         with deferred_interrupts():  # nor a half-removed partial folder
             shutil.rmtree(partial, ignore_errors=True)

@@ -15,78 +15,25 @@ synthetic stream, so one optimiser step sees ``batch_size x world_size`` example
 - every rank's random states go into the checkpoint (:func:`gather_to_main`).
 
 A process started without ``torchrun`` is rank 0 of a world of 1, and none of this applies:
-no process group, no wrapper, no collective.
+no process group, no wrapper, no collective. :class:`Launch` and :func:`detect_launch` live in
+:mod:`hkpd.launch` (``hkpd-predict`` reads them too).
 """
 
 from __future__ import annotations
 
-import os
 import time
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 
 import torch
 import torch.distributed as dist
 from torch.nn.parallel import DistributedDataParallel
 
-LAUNCH_VARIABLES = ("WORLD_SIZE", "RANK", "LOCAL_RANK")
+from hkpd.launch import LAUNCH_VARIABLES, Launch, detect_launch
 
-
-@dataclass(frozen=True)
-class Launch:
-    """Where this process sits in a launch: rank ``rank`` of ``world_size`` (0 of 1 alone).
-
-    Attributes:
-        rank: this process's index among all processes (0 logs, validates and saves).
-        local_rank: its index on this machine (which GPU it uses).
-        world_size: processes training together.
-    """
-
-    rank: int = 0
-    local_rank: int = 0
-    world_size: int = 1
-
-    @property
-    def is_main(self) -> bool:
-        """The process that logs, validates, draws the curves and writes checkpoints."""
-        return self.rank == 0
-
-    @property
-    def distributed(self) -> bool:
-        return self.world_size > 1
-
-
-def detect_launch(environment: Mapping[str, str] | None = None) -> Launch:
-    """The launch described by torchrun's ``WORLD_SIZE``/``RANK``/``LOCAL_RANK`` variables.
-
-    Args:
-        environment: the variables to read (default: ``os.environ``).
-
-    Raises:
-        ValueError: some of the variables are set but not all, or their values do not fit.
-    """
-    environment = os.environ if environment is None else environment
-    given = {name: environment.get(name) for name in LAUNCH_VARIABLES}
-    if all(value is None for value in given.values()):
-        return Launch()
-    missing = [name for name, value in given.items() if value is None]
-    if missing:
-        raise ValueError(
-            f"the environment names a torchrun launch but lacks {', '.join(missing)}; start "
-            "hkpd-train with torchrun, or without any of WORLD_SIZE, RANK and LOCAL_RANK"
-        )
-    try:
-        launch = Launch(
-            rank=int(given["RANK"]), local_rank=int(given["LOCAL_RANK"]),
-            world_size=int(given["WORLD_SIZE"]),
-        )  # fmt: skip
-    except ValueError as error:
-        raise ValueError(f"torchrun's launch variables are not integers: {given}") from error
-    if not (launch.world_size >= 1 and 0 <= launch.rank < launch.world_size):
-        raise ValueError(f"torchrun's launch variables do not fit together: {given}")
-    if launch.local_rank < 0:
-        raise ValueError(f"LOCAL_RANK must be >= 0, got {launch.local_rank}")
-    return launch
+__all__ = [
+    "LAUNCH_VARIABLES", "Launch", "average_and_any", "detect_launch", "end_process_group",
+    "gather_to_main", "launch_device", "rank_seed", "start_process_group", "wrap_for_training",
+]  # fmt: skip
 
 
 def launch_device(device: torch.device, launch: Launch) -> torch.device:
