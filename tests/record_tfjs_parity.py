@@ -62,6 +62,24 @@ def parity_image(name: str) -> np.ndarray:
     return np.asarray(crop, dtype=np.uint8)
 
 
+def generic_inputs(model: GraphModel) -> dict[str, np.ndarray]:
+    """Inputs for a model without a fixture (``--compare-only``): the photo's square crop
+    resized to each NHWC image input (RGB 0..255, int32 where the input is), free sizes 1."""
+    inputs = {}
+    for name, spec in model.inputs.items():
+        shape = [1 if size == -1 else size for size in spec.shape or ()]
+        if len(shape) != 4 or shape[3] != 3:
+            raise SystemExit(f"{model.path}: no generic input for {name} {shape}")
+        with Image.open(PHOTO) as photo:
+            square = photo.convert("RGB").crop(CROPS["nanodet"][0])
+            pixels = np.asarray(square.resize((shape[2], shape[1]), Image.Resampling.BILINEAR))
+        array = np.broadcast_to(pixels, shape)
+        inputs[name] = np.ascontiguousarray(
+            array.astype(np.int32 if spec.dtype == "DT_INT32" else np.float32)
+        )
+    return inputs
+
+
 def run_tfjs(jobs: dict[str, dict[str, np.ndarray]], model_dir: Path, outputs: dict) -> dict:
     """TF.js's outputs: ``{model: {output name: array}}``."""
     if not (NODE_FOLDER / "node_modules" / "@tensorflow" / "tfjs").is_dir():
@@ -141,16 +159,23 @@ def main(argv: list[str] | None = None) -> None:
     """Record (or, with --compare-only, just compare) the chosen models."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--model-dir", type=Path, default=ROOT / "assets" / "human_models")
-    parser.add_argument("--models", nargs="+", default=list(SHIPPED), choices=sorted(CROPS))
+    parser.add_argument(
+        "--models", nargs="+", default=list(SHIPPED), help=f"default {SHIPPED}; others than "
+        f"{sorted(CROPS)} only with --compare-only (generic inputs)"
+    )  # fmt: skip
     parser.add_argument("--compare-only", action="store_true", help="write no fixture")
     arguments = parser.parse_args(argv)
     torch.set_num_threads(1)
-    images = {name: parity_image(name) for name in arguments.models}
-    inputs = {name: model_inputs(name, images[name]) for name in arguments.models}
-    output_names = {
-        name: GraphModel.load(arguments.model_dir / f"{name}.json").output_names
-        for name in arguments.models
+    unknown = sorted(set(arguments.models) - set(CROPS))
+    if unknown and not arguments.compare_only:
+        parser.error(f"{unknown} have no fixture recipe: use --compare-only")
+    models = {n: GraphModel.load(arguments.model_dir / f"{n}.json") for n in arguments.models}
+    images = {name: parity_image(name) for name in arguments.models if name in CROPS}
+    inputs = {
+        name: model_inputs(name, images[name]) if name in CROPS else generic_inputs(model)
+        for name, model in models.items()
     }
+    output_names = {name: model.output_names for name, model in models.items()}
     expected = run_tfjs(inputs, arguments.model_dir, output_names)
     for name in arguments.models:
         compare(name, arguments.model_dir, inputs[name], expected[name])

@@ -259,3 +259,39 @@ def test_a_model_moves_to_float64_and_back(tmp_path) -> None:
     assert model.to(dtype=torch.float64).run({"x": x})["out"].dtype == torch.float64
     out = model.to(dtype=torch.float32).run({"x": x})["out"]
     assert out.dtype == torch.float32 and out.tolist() == [[4.0, 6.0]]
+
+
+def test_ops_of_the_packages_other_models() -> None:
+    """AddN, BiasAdd, Slice, Tile, Select, Range, Size, Reciprocal (movenet-multipose, the hand
+    and age models use them)."""
+    a, b = np.array([1.0, 2.0], np.float32), np.array([3.0, -5.0], np.float32)
+    (total,) = _run("AddN", [a, b, a])
+    np.testing.assert_array_equal(total.numpy(), [5.0, -1.0])
+    (biased,) = _run("BiasAdd", [np.zeros((2, 2), np.float32), b])
+    np.testing.assert_array_equal(biased.numpy(), [[3.0, -5.0], [3.0, -5.0]])
+    x = np.arange(24, dtype=np.float32).reshape(2, 3, 4)
+    (sliced,) = _run("Slice", [x, np.array([1, 0, 1], np.int32), np.array([1, -1, 2], np.int32)])
+    np.testing.assert_array_equal(sliced.numpy(), x[1:2, :, 1:3])
+    (tiled,) = _run("Tile", [a, np.array([3], np.int32)], (1,))
+    np.testing.assert_array_equal(tiled.numpy(), np.tile(a, 3))
+    (chosen,) = _run("Select", [np.array([True, False]), x[:2, 0], -x[:2, 0]])
+    np.testing.assert_array_equal(chosen.numpy(), np.stack([x[0, 0], -x[1, 0]]))
+    (chosen,) = _run("SelectV2", [np.array([True, False, True, False]), x, -x])
+    np.testing.assert_array_equal(chosen.numpy(), np.where([True, False, True, False], x, -x))
+    (steps,) = _run("Range", [np.array(1, np.int32), np.array(8, np.int32), np.array(3, np.int32)])
+    assert steps.tolist() == [1, 4, 7] and steps.dtype == torch.int32
+    (steps,) = _run("Range", [np.float32(0.0), np.float32(1.0), np.float32(0.25)])
+    np.testing.assert_array_equal(steps.numpy(), [0.0, 0.25, 0.5, 0.75])
+    (size,) = _run("Size", [x])
+    assert int(size) == 24
+    (inverse,) = _run("Reciprocal", [np.array([4.0], np.float32)])
+    assert inverse.tolist() == [0.25]
+
+
+def test_average_pool_same_averages_only_inside_the_image() -> None:
+    x = np.arange(1, 10, dtype=np.float32).reshape(1, 3, 3, 1)
+    attributes = {"ksize": [1, 2, 2, 1], "strides": [1, 2, 2, 1], "padding": "SAME"}
+    (out,) = _run("AvgPool", [x], **attributes)
+    # windows {0,1}x{0,1}, {0,1}x{2}, {2}x{0,1}, {2}x{2} (padding after, not counted)
+    expected = [[(1 + 2 + 4 + 5) / 4, (3 + 6) / 2], [(7 + 8) / 2, 9]]
+    np.testing.assert_allclose(out.numpy().reshape(2, 2), expected)

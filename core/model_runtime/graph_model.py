@@ -133,7 +133,8 @@ class GraphModel:
             names = [reference_name(parse_reference(out.name)) for out in graph.outputs]
         else:
             read = {parse_reference(ref)[0] for node in graph.nodes for ref in node.inputs}
-            names = [n.name for n in graph.nodes if n.name not in read and n.op != "Const"]
+            sinks = [n for n in graph.nodes if n.name not in read]
+            names = [n.name for n in sinks if n.op not in ("Const", "NoOp")]
         for name in names:
             if parse_reference(name)[0] not in self._nodes:
                 raise ModelFileError(f"{self.path}: the output {name!r} is no node of the graph")

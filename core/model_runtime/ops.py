@@ -18,8 +18,9 @@ from hkpd.model_runtime.op_registry import OP_BUILDERS, NodeError, PreparedOp
 OP_MODULES = (ops_index, ops_math, ops_nn, ops_shape)
 """The modules whose import registers the ops (named so the import is used)."""
 
-GRAPH_OPS = frozenset({"Const", "Placeholder"})
-"""Op types the graph model handles itself (constants and inputs)."""
+GRAPH_OPS = frozenset({"Const", "Placeholder", "NoOp"})
+"""Op types the graph model handles itself: constants, inputs and ``NoOp`` (no outputs; only
+ever a control input, which execution order by data makes moot)."""
 
 
 def supported_ops() -> frozenset[str]:

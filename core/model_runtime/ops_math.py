@@ -4,6 +4,7 @@ numpy broadcasting, integer division rounding down, ``FloorMod`` taking the divi
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import torch
@@ -110,6 +111,10 @@ _UNARY = {
     "Floor": torch.floor,
     "Ceil": torch.ceil,
     "LogicalNot": torch.logical_not,
+    "Reciprocal": torch.reciprocal,
+    "Sin": torch.sin,
+    "Cos": torch.cos,
+    "ZerosLike": torch.zeros_like,
 }
 """Unary ops: ``output = function(x)``."""
 
@@ -226,3 +231,82 @@ def _fill(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
         return (value.reshape(()).expand(shape).clone(),)
 
     return PreparedOp(run, absorbed=absorbed_where((0, shape_fixed)))
+
+
+@register("AddN")
+def _add_n(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
+    """``(x_1 … x_N) -> x_1 + … + x_N`` (same shapes), added in order as TF.js does."""
+    if not node.inputs:
+        raise NodeError("AddN needs at least one input")
+
+    def run(inputs, params):
+        total = inputs[0]
+        for term in inputs[1:]:
+            if term.shape != total.shape:
+                raise NodeError(f"AddN of shapes {list(total.shape)} and {list(term.shape)}")
+            total = total + term
+        return (total,)
+
+    return PreparedOp(run)
+
+
+@register("BiasAdd")
+def _bias_add(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
+    """``(x (..., C), bias (C,)) -> x + bias`` (NHWC only)."""
+    expect_inputs(node, 2)
+    layout = attribute(node, "data_format", str, "NHWC")
+    if layout != "NHWC":
+        raise NodeError(f"BiasAdd with data format {layout!r} is not supported (only NHWC)")
+
+    def run(inputs, params):
+        x, bias = inputs
+        if bias.dim() != 1 or x.dim() < 1 or x.shape[-1] != bias.shape[0]:
+            raise NodeError(f"BiasAdd of {list(bias.shape)} to {list(x.shape)}")
+        return (x + bias,)
+
+    return PreparedOp(run)
+
+
+@register("Select", "SelectV2")
+def _select(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
+    """``(condition, a, b) -> a where condition else b``: SelectV2 broadcasts; Select's
+    condition is x's shape or a vector over its first axis."""
+    expect_inputs(node, 3)
+
+    def run(inputs, params):
+        condition, a, b = inputs
+        if node.op == "Select" and condition.dim() == 1 and a.dim() > 1:
+            condition = condition.reshape(-1, *([1] * (a.dim() - 1)))
+        check_size(broadcast_shape(broadcast_shape(condition.shape, a.shape), b.shape), "Select")
+        return (torch.where(condition.bool(), a, b),)
+
+    return PreparedOp(run)
+
+
+@register("Range")
+def _range(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
+    """``(start, limit, delta) -> start + i·delta`` for i while before limit (ints or floats)."""
+    expect_inputs(node, 3)
+
+    def run(inputs, params):
+        start, limit, delta = (value.reshape(()) for value in inputs)
+        step = delta.item()
+        if step == 0:
+            raise NodeError("Range with a zero delta")
+        count = max(0, math.ceil((limit.item() - start.item()) / step))
+        check_size([count], "the range")
+        steps = torch.arange(count, device=start.device).to(start.dtype)
+        return (start + steps * delta,)
+
+    return PreparedOp(run)
+
+
+@register("Size")
+def _size(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
+    """``x -> its number of elements`` (int32 scalar)."""
+    expect_inputs(node, 1)
+
+    def run(inputs, params):
+        return (torch.tensor(inputs[0].numel(), dtype=torch.int32, device=inputs[0].device),)
+
+    return PreparedOp(run)

@@ -274,3 +274,26 @@ def _resize_bilinear(node: GraphNode, constants: list[torch.Tensor | None]) -> P
         return ((top + (bottom - top) * row_fraction).to(x.dtype),)
 
     return PreparedOp(run, absorbed=absorbed_where((1, size_fixed)))
+
+
+@register("AvgPool")
+def _average_pool(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
+    """``x (N,H,W,C) -> the mean over each window``; with SAME padding the mean is over the
+    window's pixels inside the image (TF's rule)."""
+    expect_inputs(node, 1)
+    _check_nhwc(node)
+    window, strides = _spatial(node, "ksize"), _spatial(node, "strides")
+    pads = _window_padding(node)
+
+    def run(inputs, params):
+        x = inputs[0]
+        if x.dim() != 4:
+            raise NodeError(f"AvgPool of shape {list(x.shape)}, not NHWC")
+        top, bottom, left, right = pads(x.shape[1], x.shape[2], *window, *strides, 1, 1)
+        images = functional.pad(x.permute(0, 3, 1, 2), (left, right, top, bottom))
+        ones = functional.pad(x.new_ones(1, 1, *x.shape[1:3]), (left, right, top, bottom))
+        sums = functional.avg_pool2d(images, window, strides, divisor_override=1)
+        counts = functional.avg_pool2d(ones, window, strides, divisor_override=1)
+        return ((sums / counts).permute(0, 2, 3, 1),)
+
+    return PreparedOp(run)

@@ -282,3 +282,41 @@ def _apply_slice_entries(x: torch.Tensor, entries: list[tuple]) -> torch.Tensor:
                 x = x.index_select(axis, picked)
             axis += 1
     return x
+
+
+@register("Slice")
+def _slice(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
+    """``(x, begin, size) -> x[begin : begin + size]`` per axis (size -1: to the end)."""
+    expect_inputs(node, 3)
+    begin_fixed, size_fixed = constant_ints(constants, 1), constant_ints(constants, 2)
+
+    def run(inputs, params):
+        x = inputs[0]
+        begin, size = ints_now(begin_fixed, inputs, 1), ints_now(size_fixed, inputs, 2)
+        if len(begin) != x.dim() or len(size) != x.dim():
+            raise NodeError(f"Slice begin {begin}, size {size} for {list(x.shape)}")
+        for axis, (start, count) in enumerate(zip(begin, size, strict=True)):
+            count = x.shape[axis] - start if count == -1 else count
+            if start < 0 or count < 0 or start + count > x.shape[axis]:
+                raise NodeError(f"Slice begin {begin}, size {size} for {list(x.shape)}")
+            x = x.narrow(axis, start, count)
+        return (x,)
+
+    return PreparedOp(run, absorbed=absorbed_where((1, begin_fixed), (2, size_fixed)))
+
+
+@register("Tile")
+def _tile(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
+    """``(x, multiples) -> x repeated multiples[i] times along axis i``."""
+    expect_inputs(node, 2)
+    multiples_fixed = constant_ints(constants, 1)
+
+    def run(inputs, params):
+        x = inputs[0]
+        multiples = ints_now(multiples_fixed, inputs, 1)
+        if len(multiples) != x.dim() or min(multiples, default=1) < 0:
+            raise NodeError(f"Tile multiples {multiples} for {list(x.shape)}")
+        check_size([s * m for s, m in zip(x.shape, multiples, strict=True)], "the tiled tensor")
+        return (x.repeat(multiples),)
+
+    return PreparedOp(run, absorbed=absorbed_where((1, multiples_fixed)))
