@@ -40,6 +40,7 @@ __all__ = [
     "SexFits",
     "fit_each_sex",
     "sex_shape_priors",
+    "with_drawn_body",
     "with_drawn_shape",
     "with_sex_shape",
 ]
@@ -161,3 +162,16 @@ def with_sex_shape(posterior: BodyPosterior, shapes: SexShapes) -> BodyPosterior
     if "pose_distribution" in posterior.__dict__:
         edited.__dict__["pose_distribution"] = posterior.pose_distribution
     return edited
+
+
+def with_drawn_body(posterior: BodyPosterior) -> BodyPosterior:
+    """``posterior`` drawing the body it may claim: a sure sex on a reading its quality score
+    warns about (:attr:`hkpd.prediction.quality.ReadingQuality.low`) is doubted, and a sex
+    that is not sure (or doubted) draws neither sex's build (:func:`with_drawn_shape`). A
+    stated sex is drawn as stated."""
+    sexes = posterior.sexes
+    if sexes is None or sexes.stated:
+        return posterior
+    if sexes.sure and posterior.quality.low:
+        posterior = replace(posterior, sexes=sexes.with_doubt())
+    return with_drawn_shape(posterior)
