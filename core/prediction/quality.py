@@ -30,6 +30,7 @@ import torch
 
 from hkpd.coco_keypoints import COCO17_MIRROR_ORDER, COCO17_NAMES
 from hkpd.kinematic_tree import rotation_angle
+from hkpd.prediction.reader_agreement import READER_SIGNAL_NAMES, detection_agreement
 from hkpd.proxy import CONFIDENCE_THRESHOLD, CROP_MARGIN
 
 if TYPE_CHECKING:
@@ -49,6 +50,7 @@ SIGNAL_NAMES: tuple[str, ...] = (
     "mask_share",
     "log10_landmark_spread",
     "box_offset",
+    *READER_SIGNAL_NAMES,
 )
 """The signals the score reads, in :attr:`ReadingQuality.signals`' order:
 
@@ -79,7 +81,15 @@ SIGNAL_NAMES: tuple[str, ...] = (
 - ``box_offset``: distance between the centre of the detected person's box (all 33 BlazePose
   landmarks, ``KeypointDetection.person_box``) and the centre of the box the search was
   restricted to (``bbox``), as a fraction of that box's longer side (0 when no box was given):
-  large when the detector took someone beside the person the box was drawn around.
+  large when the detector took someone beside the person the box was drawn around;
+- ``log10_readers_distance``, ``readers_disputed_share``, ``readers_swap_gain``,
+  ``readers_torso_offset``: how far the second keypoint reader (MoveNet Thunder) disagrees
+  with BlazePose (:class:`hkpd.prediction.reader_agreement.ReaderAgreement`: log10 of the
+  mean distance between their keypoints, the share of keypoints further apart than 0.15 of the
+  person's size, how much closer they come with one reader's left and right traded, how far
+  apart their torsos are; shares of the person's size); NaN when the second reader did not
+  read the person (``second_reader=False``, a detection made by hand), and then weighed as
+  the fitting data's mean.
 
 A fallback to the network's posterior is a flag, not a signal: none of the fitting readings fell
 back, so the data could not weigh it.
@@ -95,6 +105,10 @@ SIGNAL_DIRECTIONS: dict[str, int] = {
     "detector_score": 1,
     "log10_landmark_spread": -1,
     "box_offset": -1,
+    "log10_readers_distance": -1,
+    "readers_disputed_share": -1,
+    "readers_swap_gain": -1,
+    "readers_torso_offset": -1,
 }
 """The signals the score may weigh, each with the sign its weight must have (+1: a higher
 signal means a more trustworthy reading): ``docs/experiments/quality_fit.py`` drops a signal
@@ -176,6 +190,10 @@ FLAG_MEANINGS: dict[str, str] = {
     "face the other way",
     "facing_ambiguous": "the face is weakly seen: the person may face the other way (the "
     "turned-around reading may fit better)",
+    "readers_disagree": "a second, independent keypoint reader places the body differently "
+    "(other limbs, or another person)",
+    "left_right_unsure": "the two keypoint readers disagree on which side is left and which "
+    "is right",
     "looks_like_a_child": "the face looks like a child's: the body model is adult-only, so the "
     "body drawn is an adult's",
 }
@@ -185,6 +203,17 @@ FLAG_MEANINGS: dict[str, str] = {
 UNSTABLE_SPREAD = 0.1
 """``unstable_keypoints``: the keypoints move by more than this share of the person's size on
 average when the detector reads the person again (``log10_landmark_spread`` > -1)."""
+
+READERS_DISPUTED_SHARE = 0.3
+"""``readers_disagree``: the second reader places more than this share of the 17 keypoints
+further than 0.15 of the person's size from BlazePose's (``readers_disputed_share``) ..."""
+
+READERS_TORSO_OFFSET = 0.25
+"""... or its torso's centre more than this share of the person's size from BlazePose's."""
+
+SWAP_GAIN = 0.05
+"""``left_right_unsure``: the second reader comes closer to BlazePose by more than this share of
+the person's size on average when its left and right are traded (``readers_swap_gain``)."""
 
 OFF_CENTRE_OFFSET = 0.2
 """``off_centre_in_box``: the detected person's box is centred more than this share of the
@@ -288,6 +317,7 @@ def reading_signals(posterior: BodyPosterior) -> dict[str, float]:
         "mask_share": _mask_share(posterior),
         "log10_landmark_spread": _log10_landmark_spread(posterior),
         "box_offset": _box_offset(posterior),
+        **_reader_signals(posterior),
     }
 
 
@@ -311,6 +341,11 @@ def reading_flags(posterior: BodyPosterior, signals: dict[str, float]) -> tuple[
             or (fit is not None and posterior.conditioned and (fit.turned or fit.start == 1))
         ),
         "facing_ambiguous": facing_ambiguous(confidences),
+        "readers_disagree": bool(
+            signals["readers_disputed_share"] > READERS_DISPUTED_SHARE
+            or signals["readers_torso_offset"] > READERS_TORSO_OFFSET
+        ),
+        "left_right_unsure": bool(signals["readers_swap_gain"] > SWAP_GAIN),
         "looks_like_a_child": posterior.face is not None and posterior.face.child,
     }
     return tuple(name for name in FLAG_MEANINGS if raised[name])
@@ -334,6 +369,15 @@ def facing_ambiguous(confidences: np.ndarray) -> bool:
     behind = face_minus_shoulders(confidences) < FACE_BEHIND_SHOULDERS_LOGIT
     weak = (np.asarray(confidences, dtype=np.float64)[face] < CONFIDENCE_THRESHOLD).any()
     return bool(behind or weak)
+
+
+def _reader_signals(posterior: BodyPosterior) -> dict[str, float]:
+    """The second reader's signals (:data:`READER_SIGNAL_NAMES`); NaN when it did not read."""
+    prepared = posterior.network_input
+    agreement = None if prepared is None else detection_agreement(prepared.detection)
+    if agreement is None:
+        return dict.fromkeys(READER_SIGNAL_NAMES, float("nan"))
+    return agreement.signals()
 
 
 def _detector_score(posterior: BodyPosterior) -> float:

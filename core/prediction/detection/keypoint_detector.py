@@ -23,7 +23,7 @@ import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -50,6 +50,9 @@ from hkpd.prediction.detection.person_mask import PersonMask
 from hkpd.prediction.detection.warp import Region
 from hkpd.prediction.image_input import LoadedImage, load_image
 from hkpd.proxy import CONFIDENCE_THRESHOLD
+
+if TYPE_CHECKING:
+    from hkpd.prediction.detection.movenet import SecondReading
 
 __all__ = [
     "COCO_FROM_BLAZEPOSE",
@@ -137,6 +140,9 @@ class KeypointDetection:
             left; mouth right) as ``(u, v, visibility)``, original-photo pixels, visibility in
             [0, 1] (:mod:`hkpd.prediction.detection.face_sex` cuts the face from them); None
             when not known (a detection made by hand).
+        second_reading: the second keypoint reader's reading of the same person
+            (:class:`~hkpd.prediction.detection.movenet.SecondReading`, MoveNet Thunder, issue
+            59), made once per photo and person box by the predictor; None when not read.
     """
 
     keypoints: np.ndarray
@@ -153,6 +159,7 @@ class KeypointDetection:
     extremity_confidences: np.ndarray | None = None
     landmark_spread: float | None = None
     face_landmarks: np.ndarray | None = None
+    second_reading: SecondReading | None = None
 
     def __repr__(self) -> str:
         """One line of at most 200 characters: how many keypoints are confident, the person's
