@@ -295,3 +295,19 @@ def test_average_pool_same_averages_only_inside_the_image() -> None:
     # windows {0,1}x{0,1}, {0,1}x{2}, {2}x{0,1}, {2}x{2} (padding after, not counted)
     expected = [[(1 + 2 + 4 + 5) / 4, (3 + 6) / 2], [(7 + 8) / 2, 9]]
     np.testing.assert_allclose(out.numpy().reshape(2, 2), expected)
+
+
+def test_outputs_are_ordinary_tensors(tmp_path) -> None:
+    """Not inference tensors: callers may change them in place or use them in autograd."""
+    nodes = [placeholder("x", [-1, 2]), node("out", "Relu", ["x"])]
+    out = GraphModel.load(write_model(tmp_path, nodes, {})).run({"x": torch.ones(1, 2)})["out"]
+    assert not out.is_inference()
+    out += 1
+    assert out.tolist() == [[2.0, 2.0]]
+
+
+def test_changing_an_output_that_is_a_constant_leaves_the_model_intact(tmp_path) -> None:
+    nodes = [placeholder("x", [1]), const("c"), node("out", "Identity", ["c"])]
+    model = GraphModel.load(write_model(tmp_path, nodes, {"c": np.array([1.0], np.float32)}))
+    model.run({"x": torch.zeros(1)})["out"].fill_(7.0)
+    assert model.run({"x": torch.zeros(1)})["out"].tolist() == [1.0]

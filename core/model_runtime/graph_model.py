@@ -3,8 +3,9 @@
 ``GraphModel.load(path)`` reads ``model.json`` and its shards (``graph_file``), checks that
 every op is implemented, folds the nodes whose inputs are all constants, prepares each other
 node once (kernels in torch's layout: ``ops``) and orders them topologically. ``run`` executes
-that order on the given inputs under ``torch.inference_mode``, freeing each intermediate
-tensor after its last use. No TensorFlow is needed.
+that order on the given inputs under ``torch.no_grad`` (not ``inference_mode``: its outputs
+are ordinary tensors that callers may modify or use in autograd later), freeing each
+intermediate tensor after its last use. No TensorFlow is needed.
 
 Example::
 
@@ -217,7 +218,7 @@ class GraphModel:
         """Run a node whose inputs are all constants now; its outputs become constants."""
         arguments = [None if i in prepared.absorbed else v for i, v in enumerate(constants)]
         try:
-            with torch.inference_mode():
+            with torch.no_grad():
                 outputs = prepared.function(arguments, prepared.params)
         except (RuntimeError, IndexError, TypeError) as error:
             raise self._error(node, f"folding it failed: {error}") from None
@@ -334,10 +335,14 @@ class GraphModel:
         given = self._checked_inputs(inputs, {name for name, _ in plan.inputs})
         for name, slot in plan.inputs:
             values[slot] = given[name]
-        with torch.inference_mode():
+        with torch.no_grad():
             for step in plan.steps:
                 self._run_step(step, values)
-        return {name: values[slot] for name, slot in plan.outputs}
+        shared = {slot for slot, _ in plan.constants} | {slot for _, slot in plan.inputs}
+        return {  # a constant or an input given back is copied: callers may change outputs
+            name: values[slot].clone() if slot in shared else values[slot]
+            for name, slot in plan.outputs
+        }
 
     def _run_step(self, step: _Step, values: list[torch.Tensor | None]) -> None:
         """Run one step on ``values`` (slots), writing its outputs and freeing its dead slots."""
