@@ -124,7 +124,7 @@ def test_gates():
     assert _gate(cut_off, cut_shoulders) == "face_outside_photo"
     assert set(FACE_GATE_REASONS) == {
         "no_face", "face_outside_photo", "back_view", "small_face", "low_confidence",
-        "upside_down",
+        "upside_down", "child",
     }  # fmt: skip
 
 
@@ -143,14 +143,15 @@ def test_calibration_is_monotone_and_size_term_clipped():
 class StandInNetwork:
     """Records the faces it sees and answers a logit from the crop's mean brightness."""
 
-    def __init__(self) -> None:
+    def __init__(self, age: int = 40) -> None:
         self.batches: list[torch.Tensor] = []
+        self.age = age
 
     def __call__(self, faces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         self.batches.append(faces)
         logit = faces.mean(dim=(1, 2, 3)) / 64.0 - 2.0
         ages = torch.zeros(faces.shape[0], 100)
-        ages[:, 40] = 1.0
+        ages[:, self.age] = 1.0
         return logit, ages
 
 
@@ -175,6 +176,16 @@ def test_reader_batches_read_faces_and_skips_gated_ones():
     assert turned.reason == "back_view" and turned.p_male is None and turned.raw is None
     nobody = reader.read_all(pixels, [])
     assert nobody == [] and len(network.batches) == 1
+
+
+def test_child_face_gives_no_word_but_keeps_its_age():
+    face, _ = face_layout()
+    pixels = np.full((300, 400, 3), 90, np.uint8)
+    child = FaceSexReader(StandInNetwork(age=8)).read(pixels, face)
+    assert child.reason == "child" and child.p_male is None
+    assert child.age_years == pytest.approx(8.0) and child.raw is not None
+    adult = FaceSexReader(StandInNetwork(age=30)).read(pixels, face)
+    assert adult.reason is None and adult.p_male is not None
 
 
 def test_reader_refuses_bad_input():

@@ -12,7 +12,7 @@ BlazePose's face landmarks and read by faceres. Printed:
    probability is a likelihood ratio under even odds, as the sex latent uses it);
 4. per split: people, found, read, balanced accuracy (all read / faces >= 60 px), expected
    calibration error, and the shipped photo's P(male);
-5. the age output for children and adults.
+5. the age output (faces passing the other gates) for children and adults.
 
     python docs/experiments/face_sex_eval.py /work/shared/data/coco_mini \\
         --demo /work/shared/data/demo_photos [--faceres path/to/faceres.json]
@@ -257,13 +257,11 @@ def print_people(records: list[dict], calibration: tuple[float, float, float]) -
     for r in sorted(records, key=lambda r: (r["split"], r["key"])):
         if not r["found"] or r["sex"] == "unsure":
             continue
-        p = (
-            ""
-            if r["reason"]
-            else f"{float(calibrated_p_male(r['logit'], r['face_px'], calibration)):.2f}"
-        )
+        reason = r["reason"] or ("small_face" if r["face_px"] < MIN_FACE_PX else "read")
+        p = calibrated_p_male(r["logit"], r["face_px"], calibration) if reason == "read" else None
+        shown = "" if p is None else f"{float(p):.2f}"
         print(f"{r['key']:40s} {r['sex']:6s} child={int(r['child'])} {r['face']:9s} "
-              f"{r['reason'] or 'read':18s} {r['face_px']:6.1f} {p}")  # fmt: skip
+              f"{reason:18s} {r['face_px']:6.1f} {shown}")  # fmt: skip
 
 
 def print_ages(records: list[dict]) -> None:
@@ -273,10 +271,13 @@ def print_ages(records: list[dict]) -> None:
     for split in (("train2017", "demo"), ("val2017",)):
         for child in (True, False):
             rows = [
-                r for r in read_faces([r for r in records if r["found"]], MIN_FACE_PX)
-                if r["split"] in split and r["child"] == child
+                r for r in records
+                if r["found"] and r["reason"] in (None, "child") and r["face_px"] >= MIN_FACE_PX
+                and r["split"] in split and r["child"] == child
             ]  # fmt: skip
             ages = sorted(round(r["age"]) for r in rows)
+            if child:
+                ages = sorted((round(r["age"]), r["key"]) for r in rows)
             name = "children" if child else "adults"
             print(f"| {'+'.join(split)} | {name} | {len(rows)} | {ages} |")
 

@@ -9,7 +9,8 @@ API (what the sex latent uses)::
     reading.raw          # faceres's own output (sigmoid), None when no crop was read
     reading.age_years    # faceres's age (expectation over its 100 one-year bins), or None
     reading.face_px      # side of the face square, pixels of the image cut
-    reading.reason       # None when read; else why the face gives no word (FACE_GATE_REASONS)
+    reading.reason       # None when read; else why the face gives no word (FACE_GATE_REASONS;
+                         # "child": read, but faceres's age says a child: raw and age kept)
     readings = reader.read_all(image_rgb, detections)  # one batched network call
 
 ``detection`` is a :class:`~hkpd.prediction.detection.keypoint_detector.KeypointDetection`
@@ -29,9 +30,11 @@ photo; a back view (the eye line runs against the neck's direction:
 :func:`facing_score` < :data:`MIN_FACING`); a face square under :data:`MIN_FACE_PX` pixels; a
 face landmark less visible than :data:`MIN_LANDMARK_VISIBILITY`; an upside-down face (its up
 more than :data:`MAX_FACE_TILT_DEGREES` from the photo's up, or eye line and mouth axis that
-disagree). The calibration (:func:`calibrated_p_male`) maps faceres's logit to P(male) with the
-face's size: small faces' words are weaker. Constants were chosen and fitted on coco_mini
-train2017 and the demo photos (``docs/experiments/face_sex_eval.py``; numbers in docs/shape.md).
+disagree); after reading, a face whose age is under :data:`CHILD_AGE_YEARS` (a child: the
+young boy of train2017 read female, and the body model is adults'). The calibration
+(:func:`calibrated_p_male`) maps faceres's logit, with the face's size as an input, to P(male)
+under even odds. Constants were chosen and fitted on coco_mini train2017 and the demo photos
+(``docs/experiments/face_sex_eval.py``; numbers in docs/shape.md).
 """
 
 from __future__ import annotations
@@ -87,6 +90,11 @@ photos (class-balanced maximum likelihood, so ``p / (1 - p)`` is a likelihood ra
 odds). The free fit's size slope came out negative (-0.20: two large, ambiguous men's faces), so
 it was refitted at 0: small faces are kept out by :data:`MIN_FACE_PX` instead."""
 
+CHILD_AGE_YEARS = 18.0
+"""A face whose faceres age is under this gives no word on sex (reason ``"child"``): chosen on
+train2017, where the children's faces read 10-28 years and the adults' 27-50, and the one child
+read under 18 (a boy of about 3, 10 years) read female (0.18); the body model is adults' anyway."""
+
 CALIBRATION_REFERENCE_PX = 60.0
 """Face size at which the calibration's slope is ``CALIBRATION[1]``, pixels."""
 
@@ -97,6 +105,7 @@ FACE_GATE_REASONS = {
     "small_face": "the face is too small to read",
     "low_confidence": "the face landmarks are not confidently visible",
     "upside_down": "the face is upside down or its landmarks disagree",
+    "child": "the face looks like a child's (faceres's age under CHILD_AGE_YEARS)",
 }
 """Each gate's ``FaceReading.reason`` and what it means in words."""
 
@@ -120,7 +129,8 @@ class FaceReading:
         face_px: side of the face square, pixels of the image cut (0 when there is no face).
         landmark_confidence: smallest BlazePose visibility of nose, eyes and mouth, in [0, 1].
         facing: :func:`facing_score` in [-1, 1] (1: facing the camera; None: unknown).
-        reason: None when read, else a key of :data:`FACE_GATE_REASONS`.
+        reason: None when read, else a key of :data:`FACE_GATE_REASONS` (``"child"``: read,
+            ``raw``/``logit``/``age_years`` kept, but no ``p_male``).
         region: the face square cut (None when there is no face).
     """
 
@@ -348,8 +358,10 @@ def _reading(
     if value is None:
         return FaceReading(None, None, None, None, face_px, confidence, facing, reason, region)
     logit, age = value
-    p_male = float(calibrated_p_male(logit, face_px, calibration))
     raw = 1.0 / (1.0 + math.exp(-logit))
+    if age < CHILD_AGE_YEARS:
+        return FaceReading(None, raw, logit, age, face_px, confidence, facing, "child", region)
+    p_male = float(calibrated_p_male(logit, face_px, calibration))
     return FaceReading(p_male, raw, logit, age, face_px, confidence, facing, None, region)
 
 
