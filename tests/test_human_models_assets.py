@@ -4,9 +4,11 @@ with one line naming it and the remedy (its sha256 checked once per process)."""
 
 from __future__ import annotations
 
+import fnmatch
 import hashlib
 import json
 import shutil
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -99,3 +101,15 @@ def test_intact_models_are_hashed_once_per_process(monkeypatch) -> None:
 def test_an_unknown_model_name_is_a_key_error() -> None:
     with pytest.raises(KeyError, match="not a shipped model"):
         human_model_path("centernet")
+
+
+def test_pyproject_ships_every_file_of_the_folder_but_the_script() -> None:
+    """A non-editable install carries the models, their NOTICE and MANIFEST (package-data)."""
+    root = Path(__file__).parents[1]
+    patterns = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-data"
+    ]["hkpd.assets"]
+    for path in sorted(p for p in (root / "assets" / "human_models").iterdir() if p.is_file()):
+        relative = f"human_models/{path.name}"
+        shipped = any(fnmatch.fnmatch(relative, pattern) for pattern in patterns)
+        assert shipped == (path.suffix != ".py"), relative
