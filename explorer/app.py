@@ -50,6 +50,7 @@ from hkpd.explorer.notices import NOTICES
 from hkpd.explorer.panels import build_panels
 from hkpd.explorer.panels.same_person import ONLY_CURRENT_PHOTO
 from hkpd.explorer.panels.samples import DEFAULT_FIT_OPACITY
+from hkpd.explorer.people_menu import menu_entries, no_person_advice, person_to_show
 from hkpd.explorer.photo_geometry import (
     PhotoPlacement,
     quaternion_to_matrix,
@@ -67,13 +68,7 @@ from hkpd.explorer.same_person_shapes import combined_photos
 from hkpd.explorer.scene import PHOTO_GAP, ExplorerScene
 from hkpd.explorer.scene_file import PhotoRef
 from hkpd.explorer.scene_keeping import SceneKeeper
-from hkpd.explorer.state import (
-    MAX_OCCLUDERS,
-    MAX_SAME_PERSON_PHOTOS,
-    ExplorerState,
-    StateSnapshot,
-    clamp_box,
-)
+from hkpd.explorer.state import MAX_OCCLUDERS, MAX_SAME_PERSON_PHOTOS, ExplorerState, StateSnapshot
 from hkpd.explorer.still_image import captioned_png
 from hkpd.explorer.upload import UploadError, decode_upload
 from hkpd.explorer.worker import CoalescingWorker
@@ -364,11 +359,10 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         """The Person menu for the photo's people, naming whom the person box holds: one of
         them, or a box the user picked ("Your box")."""
         with self._menu_lock:
-            people, box = self.people, self.state.snapshot().person_box
-            width, height = self.state.image_size
-            listed = [clamp_box(person, width, height) for person in people]
-            choice = 0 if box is None else listed.index(box) if box in listed else None
-            self.panels.photo.show_people(len(people), choice)
+            result, box = self.result, self.state.snapshot().person_box
+            reading = getattr(result and result.posterior, "person_box", None)
+            choice, places = menu_entries(self.people, box, reading, self.state.image_size)
+            self.panels.photo.show_people(len(places), choice, places)
 
     @property
     def people(self) -> tuple[Box, ...]:
@@ -579,7 +573,13 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             if token != self._image_token:
                 return
             self._people, self._people_token = people, token
+            result = self._result
         self._show_person_menu()
+        if self.state.snapshot().person_box is None and result is not None:
+            reading = getattr(result.posterior, "person_box", None)  # read as --all-people does:
+            shown = person_to_show(people, reading, self.state.image_size)  # in the listed box
+            if shown is not None:
+                self.select_person(shown)
 
     def _no_person(
         self, image: np.ndarray, token: int, client: viser.ClientHandle | None = None
@@ -606,10 +606,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         self.landmark_marks.show(None)
         self._show_body(None)
         self._show_turn(None)
-        advice = (
-            "No person was found. Click **Pick the person**, then drag a box around them on "
-            "the photo."
-        )
+        advice = no_person_advice(self.state.snapshot().person_box)
         self.panels.status.show_status(f"**{advice}**")
         clients = [client] if client is not None else self.server.get_clients().values()
         for each in clients:

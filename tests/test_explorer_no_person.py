@@ -75,6 +75,10 @@ def test_nobody_in_a_new_box_clears_the_last_persons_body():
         assert "/photo" in nodes(explorer) and "No person was found" in (
             explorer.panels.status.line.content
         )
+        # Nobody in a picked box (a tiny person, issue 58): say what to do instead, not "Pick
+        # the person" again, which is what found nobody.
+        assert "drag a tighter box" in explorer.panels.status.line.content
+        assert "Click **Pick the person**" not in explorer.panels.status.line.content
         assert explorer.set_person_box((20, 20, 300, 500)) and explorer.wait_idle(30)
         assert {"/legend", "/joint_axes_label"} <= nodes(explorer)  # drawn again with a body
     finally:
@@ -137,11 +141,11 @@ def test_a_people_search_ending_during_a_pick_leaves_the_picked_box_in_the_menu(
         shown = type(section).show_people
         reading = threading.Event()
 
-        def slow_show_people(self, count, choice=0):
+        def slow_show_people(self, count, choice=0, places=()):
             if threading.current_thread() is not threading.main_thread():
                 reading.set()
                 time.sleep(0.3)  # the search's menu, worked out before the pick
-            shown(self, count, choice)
+            shown(self, count, choice, places)
 
         monkeypatch.setattr(type(section), "show_people", slow_show_people)
         search = threading.Thread(target=explorer._show_person_menu)
@@ -174,3 +178,54 @@ def test_a_person_box_without_a_person_gets_a_weak_keypoints_warning():
     assert weak_keypoints_warning(posterior_with(0.9, 12)) is None
     assert weak_keypoints_warning(posterior_with(None, 7, search_box=None)) is None
     assert weak_keypoints_warning(SimpleNamespace()) is None  # a custom provider's posterior
+
+
+class CutOffFirstProvider(TwoPeopleProvider):
+    """Two people: the larger one, whom the detector picks, cut off at the photo's right and
+    bottom edges (the photo is 384 x 512), the other whole."""
+
+    BOXES = ((200.0, 60.0, 384.0, 512.0), (20.0, 40.0, 190.0, 480.0))
+    READ = (205.0, 66.0, 384.0, 512.0)
+    """The person box of the first reading (made without a box): the cut-off person."""
+
+
+def test_the_person_menu_says_where_each_is_and_shows_a_whole_person_first(monkeypatch):
+    """Issue 58: "Person 2 of 4" said nothing of where that person is, and the detector's pick,
+    cut off at the photo's edge, was shown though a whole person was found. Now each entry says
+    where, and the whole person is shown, predicted in their listed box (as --all-people)."""
+    from hkpd.prediction.posterior import BodyPosterior
+
+    monkeypatch.setattr(BodyPosterior, "person_box", property(lambda _: CutOffFirstProvider.READ))
+    provider = CutOffFirstProvider()
+    explorer = ExplorerApp(provider, provider.double.scene.image, port=0, num_displayed=2)
+    try:
+        deadline = time.monotonic() + 60
+        while len(provider.calls) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert explorer.wait_idle(60)
+        assert provider.calls == [None, CutOffFirstProvider.BOXES[1]]
+        menu = explorer.panels.photo.people
+        assert tuple(menu.options) == (
+            "Person 1 of 2 — right, large, cut off by the edge",
+            "Person 2 of 2 — left, large",
+        )
+        assert menu.value == menu.options[1]
+        assert explorer.state.snapshot().person_box == CutOffFirstProvider.BOXES[1]
+        assert not explorer.errors
+    finally:
+        explorer.stop()
+
+
+def test_person_places_and_whom_to_show() -> None:
+    from hkpd.explorer.people_menu import person_places, person_to_show
+
+    size = (1000, 600)
+    people = ((600.0, 100.0, 1000.0, 600.0), (50.0, 100.0, 250.0, 500.0), (450, 300, 500, 400))
+    assert person_places(people, size) == (
+        "right, large, cut off by the edge", "left, medium", "centre, small",
+    )  # fmt: skip
+    assert person_to_show(people, (610.0, 90.0, 1000.0, 600.0), size) == 1  # whole one first
+    assert person_to_show(people, (60.0, 100.0, 240.0, 490.0), size) == 1  # in its listed box
+    assert person_to_show(people, None, size) is None  # unknown reading: kept
+    assert person_to_show(people[:1], people[0], size) is None  # one person: kept
+    assert person_to_show(people[::2], people[0], size) == 1

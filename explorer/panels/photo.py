@@ -51,9 +51,10 @@ class PhotoActions(OccluderActions, Protocol):
         ...
 
 
-def person_choice(index: int, count: int) -> str:
-    """The dropdown label of person ``index`` (0-based) of ``count``."""
-    return f"Person {index + 1} of {count}" + (" (the detector's best)" if index == 0 else "")
+def person_choice(index: int, count: int, place: str = "") -> str:
+    """The dropdown label of person ``index`` (0-based) of ``count``, with where they are
+    (``place``, e.g. "left, small": :func:`hkpd.explorer.people_menu.person_places`)."""
+    return f"Person {index + 1} of {count}" + (f" — {place}" if place else "")
 
 
 @dataclass
@@ -88,7 +89,7 @@ class PhotoSection:
     """The entry :meth:`show_people` last set: what the menu goes back to when a value arrives
     that the menu does not offer (a browser's late echo of an older menu)."""
 
-    def show_people(self, count: int, choice: int | None = 0) -> None:
+    def show_people(self, count: int, choice: int | None = 0, places: tuple[str, ...] = ()) -> None:
         """Offer a choice of person when the photo shows several (hidden otherwise).
 
         Args:
@@ -96,8 +97,10 @@ class PhotoSection:
             choice: the 0-based person whose body is shown, or None while the person box is
                 one the user picked (the menu then says :data:`PICKED_CHOICE`, and is shown
                 when at least one person is listed, to go back to them).
+            places: where each person is, in words (none: the entries say only "Person k").
         """
-        choices = tuple(person_choice(i, count) for i in range(count))
+        places = places or ("",) * count
+        choices = tuple(person_choice(i, count, places[i]) for i in range(count))
         if choice is None:
             choices += (PICKED_CHOICE,)
             value = PICKED_CHOICE
