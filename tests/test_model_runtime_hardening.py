@@ -299,3 +299,19 @@ def test_inputs_of_the_wrong_kind_or_shape_are_refused_clearly(tmp_path) -> None
         model.run({"y": torch.zeros(1, 5, 5, 2)})
     with pytest.raises(KeyError, match="no output"):
         model.run({"x": torch.zeros(1, 5, 5, 2)}, ["nowhere"])
+
+
+def test_a_gather_into_an_absurd_size_is_refused(tmp_path) -> None:
+    nodes = [
+        placeholder("x", [1]),
+        const("params"),
+        const("indices", "DT_INT32"),
+        const("axis", "DT_INT32"),
+        node("out", "GatherV2", ["params", "indices", "axis"]),
+    ]
+    weights = {
+        "params": np.ones((1, 2**12), np.float32),
+        "indices": np.zeros(2**18, np.int32),
+        "axis": np.array(0, np.int32),
+    }
+    _refused(write_model(tmp_path, nodes, weights), "'out'", "elements")

@@ -44,9 +44,10 @@ def _gather(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp
         source, indices = inputs[0], inputs[1]
         (axis,) = ints_now(axis_fixed, inputs, 2)
         dim = normalised_axis(axis, source.dim())
+        shape = [*source.shape[:dim], *indices.shape, *source.shape[dim + 1 :]]
+        check_size(shape, "the gathered tensor")
         flat = _checked_indices(indices, source.shape[dim], "GatherV2").reshape(-1)
         picked = source.index_select(dim, flat)
-        shape = [*source.shape[:dim], *indices.shape, *source.shape[dim + 1 :]]
         return (picked.reshape(shape),)
 
     return PreparedOp(run, absorbed=absorbed_where((2, axis_fixed)))
@@ -63,6 +64,7 @@ def _gather_nd(node: GraphNode, constants: list[torch.Tensor | None]) -> Prepare
         depth = indices.shape[-1] if indices.dim() else 0
         if indices.dim() == 0 or depth > source.dim():
             raise NodeError(f"GatherNd indices {list(indices.shape)} for {list(source.shape)}")
+        check_size([*indices.shape[:-1], *source.shape[depth:]], "the gathered tensor")
         linear = torch.zeros(indices.shape[:-1], dtype=torch.long, device=source.device)
         for level in range(depth):
             size = source.shape[level]
