@@ -315,3 +315,40 @@ def test_a_gather_into_an_absurd_size_is_refused(tmp_path) -> None:
         "axis": np.array(0, np.int32),
     }
     _refused(write_model(tmp_path, nodes, weights), "'out'", "elements")
+
+
+@pytest.mark.parametrize("op", ["MatMul", "ConcatV2", "Pack"])
+def test_products_and_concatenations_into_an_absurd_size_are_refused(tmp_path, op) -> None:
+    nodes = [placeholder("x", [1]), const("a"), const("b"), const("axis", "DT_INT32")]
+    if op == "MatMul":
+        nodes.append(node("out", op, ["a", "b"]))
+    elif op == "ConcatV2":
+        nodes.append(node("out", op, ["a"] * 300 + ["axis"]))
+    else:
+        nodes.append(node("out", op, ["a"] * 300, axis={"i": "0"}))
+    weights = {
+        "a": np.ones((2**20, 1), np.float32),
+        "b": np.ones((1, 2**9), np.float32),
+        "axis": np.array(0, np.int32),
+    }
+    _refused(write_model(tmp_path, nodes, weights), "'out'", "elements")
+
+
+def test_a_convolution_with_an_absurd_output_is_refused_when_run(tmp_path) -> None:
+    """The output's size depends on the input: checked before convolving."""
+    nodes = [
+        placeholder("x", [-1, -1, -1, 1]),
+        const("k"),
+        node(
+            "out",
+            "Conv2D",
+            ["x", "k"],
+            strides=attr_ints([1, 1, 1, 1]),
+            padding=attr_string("VALID"),
+        ),
+    ]
+    model = GraphModel.load(
+        write_model(tmp_path, nodes, {"k": np.ones((1, 1, 1, 2**12), np.float32)})
+    )
+    with pytest.raises(ValueError, match="elements"):
+        model.run({"x": torch.zeros(1, 256, 512, 1)})

@@ -132,6 +132,14 @@ def _convolution_runner(node: GraphNode, depthwise: bool) -> Callable[..., torch
             images = functional.pad(images, (left, right, top, bottom))
             padding = (0, 0)
         groups = channels if depthwise else 1
+        out_size = [
+            (size + before + after - (kernel - 1) * dilation - 1) // stride + 1
+            for size, before, after, kernel, dilation, stride in zip(
+                x.shape[1:3], (top, left), (bottom, right), weight.shape[2:], dilations, strides,
+                strict=True,
+            )
+        ]  # fmt: skip
+        check_size([x.shape[0], *out_size, weight.shape[0]], "the convolution's output")
         output = functional.conv2d(images, weight, bias, strides, padding, dilations, groups)
         return output.permute(0, 2, 3, 1)
 
@@ -199,6 +207,7 @@ def _matmul(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp
         b = b.T if transpose_b else b
         if a.shape[1] != b.shape[0]:
             raise NodeError(f"MatMul of shapes {list(a.shape)} and {list(b.shape)}")
+        check_size([a.shape[0], b.shape[1]], "the product")
         output = a @ b
         if bias_fused:
             output = output + inputs[2]

@@ -109,6 +109,7 @@ def _concat(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp
     def run(inputs, params):
         (axis,) = ints_now(axis_fixed, inputs, last)
         tensors = inputs[:last]
+        check_size([sum(t.numel() for t in tensors)], "the concatenation")
         return (torch.cat(tensors, dim=normalised_axis(axis, tensors[0].dim())),)
 
     return PreparedOp(run, absorbed=absorbed_where((last, axis_fixed)))
@@ -120,6 +121,7 @@ def _pack(node: GraphNode, constants: list[torch.Tensor | None]) -> PreparedOp:
     axis = attribute(node, "axis", int, 0)
 
     def run(inputs, params):
+        check_size([sum(t.numel() for t in inputs)], "the stack")
         return (torch.stack(inputs, dim=normalised_axis(axis, inputs[0].dim() + 1)),)
 
     return PreparedOp(run)
