@@ -113,6 +113,7 @@ def prepare_network_input(
     crop_size: int = CROP_SIZE,
     image_proxy: str = DEFAULT_IMAGE_PROXY,
     silhouette: np.ndarray | None = None,
+    detection: KeypointDetection | None = None,
 ) -> NetworkInput:
     """Load a photo, paint occluders, detect the person, crop, and build the proxy.
 
@@ -137,6 +138,9 @@ def prepare_network_input(
         silhouette: ``(H, W)`` bool mask of the person at the photo's original resolution;
             required by the ``"silhouette"`` proxy (e.g. a COCO person mask), ignored
             otherwise. Occluders are removed from it.
+        detection: the detector's result on this photo (unpainted, in ``bbox``) when it is
+            already known (:class:`hkpd.prediction.photo_reading.PhotoReading`): the detector
+            is not run again.
 
     Returns:
         The :class:`NetworkInput`.
@@ -151,7 +155,8 @@ def prepare_network_input(
     loaded = load_image(image, max_side=max_side)
     if image_proxy == "silhouette":
         silhouette = _checked_silhouette(silhouette, loaded)
-    detection = detector.detect(loaded, bbox=bbox)  # the unpainted photo (see the docstring)
+    if detection is None:  # the unpainted photo (see the docstring)
+        detection = detector.detect(loaded, bbox=bbox)
     if len(occluders):
         loaded = apply_occluders(loaded, occluders)
     frame = evidence_frame(detection.image_size, detection.search_box)

@@ -22,7 +22,7 @@ import functools
 import math
 import os
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -37,6 +37,7 @@ from hkpd.conditioning import (
     EvidenceConfig,
     EvidenceTerm,
     KeypointEvidence,
+    KeypointFit,
     SilhouetteEvidence,
     SilhouetteTerm,
     StatedBody,
@@ -55,10 +56,12 @@ from hkpd.prediction.network_input import (
     proxy_person_mask,
 )
 from hkpd.prediction.occluders import OccluderBoxes, Occluders
+from hkpd.prediction.photo_reading import PhotoReading, PhotoReadingCache, photo_key
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
 from hkpd.prediction.readings.upright_view import UprightView
 from hkpd.prediction.sex_fits import fit_each_sex, with_sex_shape
+from hkpd.prediction.sex_latent import SexShapes
 from hkpd.prediction.turning import turn_around
 from hkpd.proxy import build_proxy
 from hkpd.stated_body import StatedValue
@@ -135,6 +138,7 @@ class Predictor:
         self._lock = threading.Lock()
         self._body64: BodyModel | None = None
         self._surface: SurfaceSamples | None = None
+        self._photo_readings = PhotoReadingCache()
 
     @classmethod
     def from_pretrained(
@@ -179,8 +183,15 @@ class Predictor:
         silhouette: np.ndarray | None = None,
         sex: str | None = None,
         measurements: Mapping[str, StatedValue] | None = None,
+        reading: PhotoReading | None = None,
     ) -> BodyPosterior:
         """The body posterior of the person in ``image``.
+
+        How the photo is read (the detection, the upright copy, the mirror choice, the sexes'
+        weights) belongs to the photo, not to the occluders: it is decided once on the photo
+        without occluders (:meth:`read_photo`, kept for the last few photos) and kept when
+        occluders change, so that a box only removes evidence
+        (:mod:`hkpd.prediction.photo_reading`).
 
         Args:
             image: a file path, an ``(H, W, 3)`` uint8 RGB array, a PIL image, or a
@@ -213,6 +224,10 @@ class Predictor:
                 ``"chest_m"``, ``"waist_m"``, ``"hip_m"``, ``"shoulder_width_m"`` (metres,
                 kilograms; default stds :data:`hkpd.stated_body.DEFAULT_STATED_STD`):
                 evidence on the shape, weighed before the fit.
+            reading: the photo's :class:`PhotoReading` from :meth:`read_photo` (its photo,
+                person box and upright setting are used: ``image``, ``bbox``, ``upright`` and
+                ``silhouette`` are then not read again); None: the one kept for this photo and
+                these settings, made now when there is none.
 
         Raises:
             ImageInputError: the image is missing, unreadable or unusable.
@@ -223,36 +238,121 @@ class Predictor:
         """
         stated = self._stated(sex, measurements, evidence)
         with self._lock:
-            prepared = prepare_network_input(
-                image,
-                self.detector,
-                bbox=bbox,
-                occluders=Occluders.of(occluders),
-                crop_size=self.crop_size,
-                image_proxy=self.image_proxy,
-                silhouette=silhouette,
-            )
-            readings = self.reading.read(
-                self._reading_input(prepared), upright=upright, keep_as_it_is=True
-            )
-            starts = readings.distribution.map(lambda tensor: tensor.detach().float().cpu())
+            photo = reading or self._photo_reading(image, bbox, upright, silhouette)
+            prepared, readings = self._boxed(photo, Occluders.of(occluders), silhouette)
+            starts = _float_cpu(readings.distribution)
             if not evidence:  # the upright copy's reading when there is one
                 chosen = readings.chosen_rows[0]
                 return self._posterior(starts, chosen, prepared, readings)
             network_posterior = self._posterior(starts, 0, prepared, readings)
-            return self._evidence_posterior(starts, prepared, readings, network_posterior, stated)
+            fit, sexes = self._fit(starts, prepared, stated, photo)
+            return self._evidence_posterior(starts, prepared, readings, network_posterior, fit,
+                                            sexes, stated)  # fmt: skip
 
-    def _evidence_posterior(
+    @torch.no_grad()
+    def read_photo(
         self,
-        starts: BodyDistribution,
-        prepared: NetworkInput,
-        readings: Readings,
-        network_posterior: BodyPosterior,
-        stated: StatedBody,
-    ) -> BodyPosterior:
-        """The network's readings conditioned on the photo's evidence (keypoints, and the mask
-        when asked for) and on what was stated, under each sex's prior when the body model has
-        them (:mod:`hkpd.prediction.sex_fits`); the network's posterior when the fit fails."""
+        image: str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage,
+        bbox: Sequence[float] | np.ndarray | None = None,
+        upright: bool = True,
+        silhouette: np.ndarray | None = None,
+    ) -> PhotoReading:
+        """How the person in ``image`` is read, decided on the photo without occluders
+        (:mod:`hkpd.prediction.photo_reading`): the detection, the upright copy, the mirror
+        choice; the sexes' weights are added by the first evidence prediction of each fit
+        setting. Kept (the last :data:`~hkpd.prediction.photo_reading.PHOTO_READINGS_KEPT`)
+        and given back for the same pixels and settings. Arguments and errors as
+        :meth:`predict`'s."""
+        with self._lock:
+            return self._photo_reading(image, bbox, upright, silhouette)
+
+    def _photo_reading(
+        self,
+        image: str | os.PathLike[str] | np.ndarray | Image.Image | LoadedImage,
+        bbox: Sequence[float] | np.ndarray | None,
+        upright: bool,
+        silhouette: np.ndarray | None,
+    ) -> PhotoReading:
+        """:meth:`read_photo` without the lock: the kept reading, or a new one (kept unless a
+        silhouette was given: its pixels are not part of the key)."""
+        loaded = load_image(image)
+        box = None if bbox is None else tuple(float(v) for v in np.asarray(bbox).ravel())
+        settings = (box, upright, self.reading.config, self.image_proxy, id(self.detector))
+        key = None if silhouette is not None else photo_key(loaded, *settings)
+        kept = None if key is None else self._photo_readings.get(key)
+        if kept is not None:
+            return kept
+        clear = prepare_network_input(
+            loaded,
+            self.detector,
+            bbox=bbox,
+            crop_size=self.crop_size,
+            image_proxy=self.image_proxy,
+            silhouette=silhouette,
+        )
+        batch = self._reading_input(clear)
+        readings = self.reading.read(batch, upright=upright, keep_as_it_is=True)
+        photo = PhotoReading(clear, readings, key)
+        if key is not None:
+            self._photo_readings.put(photo)
+        return photo
+
+    def _boxed(
+        self, photo: PhotoReading, occluders: Occluders, silhouette: np.ndarray | None
+    ) -> tuple[NetworkInput, Readings]:
+        """The network input and readings of ``photo`` with ``occluders``: without any, the
+        photo's own; else the boxes painted on the same detection and crop, each reading read
+        once, from the photo's upright copy and mirrored as the photo chose."""
+        if not len(occluders):
+            return photo.clear, photo.readings
+        prepared = prepare_network_input(
+            photo.image,
+            self.detector,
+            occluders=occluders,
+            crop_size=self.crop_size,
+            image_proxy=self.image_proxy,
+            silhouette=silhouette,
+            detection=photo.detection,
+        )
+        views, mirrored = list(photo.readings.views), photo.mirrored
+        batch = self._reading_input(prepared)
+        readings = self.reading.read_views(batch, views, keep_as_it_is=True, mirrored=mirrored)
+        return prepared, readings
+
+    def fit_setting(self, stated: StatedBody) -> Hashable:
+        """What the sexes' weights depend on besides the photo: what was stated and the fit's
+        settings (the key of :attr:`PhotoReading.sexes`)."""
+        measurements = tuple(sorted(stated.measurements.items()))
+        switches = (self.silhouette_evidence, self.landmark_evidence)
+        return (stated.sex, measurements, switches, self.evidence_config)
+
+    def _fit(
+        self, starts: BodyDistribution, prepared: NetworkInput, stated: StatedBody,
+        photo: PhotoReading,
+    ) -> tuple[KeypointFit, SexShapes | None]:  # fmt: skip
+        """The evidence fit of ``prepared`` from ``starts`` and, with sex priors, the sexes:
+        on the photo without occluders weighed by the fits (and kept in ``photo``), with
+        occluders the photo's weights (found first on the photo without them when unknown)."""
+        if not self.body.has_sex_priors:
+            return self._fit_sexes(starts, prepared, stated, photo, None)
+        setting = self.fit_setting(stated)
+        decided = None
+        if len(prepared.occluders):
+            decided = photo.sexes.get(setting)
+            if decided is None:
+                clear_starts = _float_cpu(photo.readings.distribution)
+                decided = self._fit(clear_starts, photo.clear, stated, photo)[1]
+        fit, sexes = self._fit_sexes(starts, prepared, stated, photo, decided)
+        if decided is None and sexes is not None:
+            photo.sexes[setting] = sexes
+        return fit, sexes
+
+    def _fit_sexes(
+        self, starts: BodyDistribution, prepared: NetworkInput, stated: StatedBody,
+        photo: PhotoReading, decided: SexShapes | None,
+    ) -> tuple[KeypointFit, SexShapes | None]:  # fmt: skip
+        """The fit (:mod:`hkpd.prediction.sex_fits` when the body model has sex priors, with
+        the photo's face and ``decided`` sexes) and its sexes (None without sex priors)."""
         keypoint_evidence = KeypointEvidence(
             torch.as_tensor(prepared.keypoints_crop, dtype=torch.float64),
             torch.as_tensor(prepared.evidence),
@@ -262,16 +362,27 @@ class Predictor:
         config = self.evidence_config
         config = config.for_mask_evidence() if mask_terms else config
         mask_terms = mask_terms + self._landmark_terms(prepared)
-        sexes = None
+        body64 = self._float64_body()
         if not self.body.has_sex_priors:
-            fit = condition_on_keypoints(
-                self._float64_body(), starts, keypoint_evidence, config, mask_terms
-            )
-        else:
-            fits = fit_each_sex(
-                self._float64_body(), starts, keypoint_evidence, config, mask_terms, stated
-            )
-            fit, sexes = fits.winner, fits.shapes
+            fit = condition_on_keypoints(body64, starts, keypoint_evidence, config, mask_terms)
+            return fit, None
+        fits = fit_each_sex(body64, starts, keypoint_evidence, config, mask_terms, stated,
+                            face=photo.face, decided=decided)  # fmt: skip
+        return fits.winner, fits.shapes
+
+    def _evidence_posterior(
+        self,
+        starts: BodyDistribution,
+        prepared: NetworkInput,
+        readings: Readings,
+        network_posterior: BodyPosterior,
+        fit: KeypointFit,
+        sexes: SexShapes | None,
+        stated: StatedBody,
+    ) -> BodyPosterior:
+        """The network's readings conditioned on the photo's evidence (``fit``: keypoints, and
+        the mask when asked for) and on what was stated, with the sexes when the body model has
+        sex priors; the network's posterior when the fit failed."""
         if fit.conditioned is None:
             fallback = replace(network_posterior, evidence_fit=fit, stated=stated)
             return fallback if sexes is None else with_sex_shape(fallback, sexes)
@@ -423,6 +534,11 @@ class Predictor:
     def close(self) -> None:
         """Release the detector's resources."""
         self.detector.close()
+
+
+def _float_cpu(distribution: BodyDistribution) -> BodyDistribution:
+    """``distribution`` detached, float32, on the CPU (the fit's starts)."""
+    return distribution.map(lambda tensor: tensor.detach().float().cpu())
 
 
 def float64_body(body: BodyModel) -> BodyModel:

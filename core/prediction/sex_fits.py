@@ -92,6 +92,7 @@ def fit_each_sex(
     extra_terms: Sequence[EvidenceTerm],
     stated: StatedBody,
     face: FaceWord | None = None,
+    decided: SexShapes | None = None,
 ) -> SexFits:
     """Fit ``evidence`` from the ``B`` starts under each sex's shape prior.
 
@@ -104,6 +105,10 @@ def fit_each_sex(
         stated: what the user stated (a stated sex is the only one fitted).
         face: what the face said of the sex (its calibrated P(male), or why it said nothing),
             evidence beside the fits' (:func:`sex_probabilities`); None: not read.
+        decided: the sexes as already read on the photo without occluders
+            (:class:`hkpd.prediction.photo_reading.PhotoReading`): their probabilities and what
+            each source said are kept (a box removes evidence, it does not change how the photo
+            is read); only the shapes are fitted again. None: weighed by these fits.
 
     Returns:
         :class:`SexFits`. A fit that fails keeps its prior's shape (first start) and weight.
@@ -125,6 +130,8 @@ def fit_each_sex(
     evidence = None
     if stated.sex is not None:
         probabilities = {sex: float(sex == stated.sex) for sex in SEX_NAMES}
+    elif decided is not None:
+        probabilities, evidence = dict(decided.probabilities), decided.evidence
     else:
         face = face or FaceWord()
         probabilities = sex_probabilities(log_evidence, face.p_male)

@@ -86,6 +86,21 @@ class MirrorChoosingReader(torch.nn.Module):
         self.last_mirrored = np.zeros(0, dtype=bool)
         self.last_other: BodyDistribution | None = None
 
+    def read_as(self, proxy: torch.Tensor, mirrored: np.ndarray) -> BodyDistribution:
+        """The readings of ``(B, C + 17, S, S)`` proxies, each read mirrored where
+        ``mirrored (B,)`` says so (a choice made before, e.g. on the photo without occluders:
+        :class:`hkpd.prediction.photo_reading.PhotoReading`) and as it is elsewhere, in one
+        network call of ``B``; each in its proxy's frame. Sets :attr:`last_mirrored`;
+        :attr:`last_other` becomes None (the other readings are not made)."""
+        take = torch.as_tensor(np.asarray(mirrored, dtype=bool), device=proxy.device)
+        if take.shape != (proxy.shape[0],):
+            raise ValueError(f"mirrored must have one flag per proxy, got {tuple(take.shape)}")
+        flipped = torch.where(take[:, None, None, None], mirror_proxy(proxy), proxy)
+        output = self.network(flipped)
+        self.last_mirrored = take.cpu().numpy().copy()
+        self.last_other = None
+        return unmirror_output(output).where(take, output)
+
     def forward(self, proxy: torch.Tensor) -> BodyDistribution:
         """The chosen readings of ``(B, C + 17, S, S)`` proxies, each in its proxy's frame."""
         count, size = int(proxy.shape[0]), int(proxy.shape[-1])

@@ -218,9 +218,13 @@ class ReadingStage:
         batch: ReadingInput,
         views: list[UprightView | None],
         keep_as_it_is: bool = False,
+        mirrored: np.ndarray | None = None,
     ) -> Readings:
         """The readings of ``batch``, example ``i`` from ``views[i]`` (None: as it is), in one
-        network call (``keep_as_it_is``: as for :meth:`read`)."""
+        network call (``keep_as_it_is``: as for :meth:`read`). ``mirrored``: ``(R,)`` bool per
+        row of that call, the mirror choice already made (``Readings.mirrored`` of an earlier
+        reading with the same views); each row is then read once, that way (None: chosen
+        here, when the stage reads mirrored)."""
         turned = [(example, view) for example, view in enumerate(views) if view is not None]
         count = batch.count
         if not turned:
@@ -236,9 +240,17 @@ class ReadingStage:
             for example, view in turned:
                 proxies[example] = batch.turned_proxy(example, view).to(proxies.device)
             row_views, chosen = list(views), list(range(count))
-        output = _in_crop_frames(self.network(proxies), row_views)
+        output = _in_crop_frames(self._network_output(proxies, mirrored), row_views)
         mirrored = self._last_mirrored(len(row_views))
         return Readings(output, tuple(views), tuple(row_views), tuple(chosen), mirrored)
+
+    def _network_output(
+        self, proxies: torch.Tensor, mirrored: np.ndarray | None
+    ) -> BodyDistribution:
+        """The network's readings of ``proxies``, mirrored as ``mirrored`` says when given."""
+        if mirrored is None or not isinstance(self.network, MirrorChoosingReader):
+            return self.network(proxies)
+        return self.network.read_as(proxies, mirrored)
 
     def _turned_proxies(
         self, batch: ReadingInput, turned: list[tuple[int, UprightView]]
