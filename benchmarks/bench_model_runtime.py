@@ -23,14 +23,21 @@ from timing import call_times
 from hkpd.model_runtime import GraphModel
 from hkpd.model_runtime.shipped import HUMAN_MODELS, load_human_model
 
+FREE_SIDE = 256
+"""Size of a free (-1) input axis other than the batch (movenet-multipose's image side)."""
+
 
 def _example_inputs(model: GraphModel, batch: int) -> dict[str, torch.Tensor]:
-    """Each input of ``model`` as a deterministic random tensor (free sizes -> ``batch``):
+    """Each input of ``model`` as a deterministic random tensor (a free batch -> ``batch``,
+    other free sizes -> FREE_SIDE):
     floats in 0..1 (x255 for NHWC 3-channel images), ints in 0..255."""
     generator = torch.Generator().manual_seed(0)
     inputs = {}
     for name, spec in model.inputs.items():
-        shape = [batch if size == -1 else size for size in spec.shape or ()]
+        shape = [
+            size if size != -1 else batch if axis == 0 else FREE_SIDE
+            for axis, size in enumerate(spec.shape or ())
+        ]
         values = torch.rand(shape, generator=generator)
         if spec.dtype == "DT_INT32":
             inputs[name] = (values * 255).to(torch.int32)
