@@ -64,10 +64,14 @@ def parity_image(name: str) -> np.ndarray:
 
 def generic_inputs(model: GraphModel) -> dict[str, np.ndarray]:
     """Inputs for a model without a fixture (``--compare-only``): the photo's square crop
-    resized to each NHWC image input (RGB 0..255, int32 where the input is), free sizes 1."""
+    resized to each NHWC image input (RGB 0..255, int32 where the input is), a free batch 1
+    and free sides 256."""
     inputs = {}
     for name, spec in model.inputs.items():
-        shape = [1 if size == -1 else size for size in spec.shape or ()]
+        shape = [
+            size if size != -1 else 1 if axis == 0 else 256
+            for axis, size in enumerate(spec.shape or ())
+        ]
         if len(shape) != 4 or shape[3] != 3:
             raise SystemExit(f"{model.path}: no generic input for {name} {shape}")
         with Image.open(PHOTO) as photo:
