@@ -154,6 +154,13 @@ def build_parser() -> argparse.ArgumentParser:
         "2D keypoints (the paper's method; docs/evidence.md)",
     )
     parser.add_argument(
+        "--no-face",
+        action="store_true",
+        help="do not let the face tell the sex (by default HSE FaceRes reads the face, on this "
+        "machine, and its calibrated word weighs the sexes beside the body's proportions; "
+        "summary.json's sex_evidence keeps each apart; docs/shape.md)",
+    )
+    parser.add_argument(
         "--silhouette-evidence",
         action="store_true",
         help="also condition on BlazePose's person mask: the body's outline is fitted to the "
@@ -319,6 +326,7 @@ def predict_photo(
     evidence: bool = True,
     stated: StatedBody | None = None,
     turn_around: bool = False,
+    read_face: bool = True,
 ) -> PhotoResult:
     """Predict one photo and write its files into ``folder`` (``turn_around``: its
     turned-around reading, :meth:`BodyPosterior.turned_around`).
@@ -331,7 +339,9 @@ def predict_photo(
     """
     started = time.perf_counter()
     timings: dict[str, float] = {}
-    posterior = predictor.predict(image, bbox=bbox, evidence=evidence, **_stated_arguments(stated))
+    posterior = predictor.predict(
+        image, bbox=bbox, evidence=evidence, read_face=read_face, **_stated_arguments(stated)
+    )
     if turn_around:
         posterior = posterior.turned_around()
     clock = _timed(timings, "predict_s", started)
@@ -641,6 +651,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             evidence=not args.no_evidence,
             stated=stated,
             turn_around=args.turn_around,
+            read_face=not args.no_face,
         )
 
     try:

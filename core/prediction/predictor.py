@@ -48,7 +48,9 @@ from hkpd.conditioning.landmark_term import LandmarkEvidence, LandmarkTerm
 from hkpd.devices import resolve_device
 from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
+from hkpd.prediction.detection.face_sex import FaceSexReader
 from hkpd.prediction.detection.keypoint_detector import KeypointDetector, people_by_size
+from hkpd.prediction.face_evidence import face_word
 from hkpd.prediction.image_input import LoadedImage, load_image
 from hkpd.prediction.network_input import (
     NetworkInput,
@@ -60,8 +62,8 @@ from hkpd.prediction.photo_reading import PhotoReading, PhotoReadingCache, photo
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
 from hkpd.prediction.readings.upright_view import UprightView
-from hkpd.prediction.sex_fits import fit_each_sex, with_sex_shape
-from hkpd.prediction.sex_latent import SexShapes
+from hkpd.prediction.sex_fits import fit_each_sex, with_drawn_body, with_sex_shape
+from hkpd.prediction.sex_latent import FaceWord, SexShapes
 from hkpd.prediction.turning import turn_around
 from hkpd.proxy import build_proxy
 from hkpd.stated_body import StatedValue
@@ -139,6 +141,7 @@ class Predictor:
         self._body64: BodyModel | None = None
         self._surface: SurfaceSamples | None = None
         self._photo_readings = PhotoReadingCache()
+        self.face_reader = FaceSexReader()
 
     @classmethod
     def from_pretrained(
@@ -184,6 +187,7 @@ class Predictor:
         sex: str | None = None,
         measurements: Mapping[str, StatedValue] | None = None,
         reading: PhotoReading | None = None,
+        read_face: bool = True,
     ) -> BodyPosterior:
         """The body posterior of the person in ``image``.
 
@@ -228,6 +232,11 @@ class Predictor:
                 person box and upright setting are used: ``image``, ``bbox``, ``upright`` and
                 ``silhouette`` are then not read again); None: the one kept for this photo and
                 these settings, made now when there is none.
+            read_face: let the face tell the sex too (:mod:`hkpd.prediction.face_evidence`:
+                HSE FaceRes on the face square cut from BlazePose's face landmarks, read once
+                per photo and person, calibrated; ``posterior.sex_evidence`` keeps its word
+                apart from the keypoints'); it says nothing for back views, small or unclear
+                faces. A stated ``sex`` overrides it. False: the body's proportions alone.
 
         Raises:
             ImageInputError: the image is missing, unreadable or unusable.
@@ -238,7 +247,7 @@ class Predictor:
         """
         stated = self._stated(sex, measurements, evidence)
         with self._lock:
-            photo = reading or self._photo_reading(image, bbox, upright, silhouette)
+            photo = reading or self._photo_reading(image, bbox, upright, silhouette, read_face)
             prepared, readings = self._boxed(photo, Occluders.of(occluders), silhouette)
             starts = _float_cpu(readings.distribution)
             if not evidence:  # the upright copy's reading when there is one
@@ -246,8 +255,9 @@ class Predictor:
                 return self._posterior(starts, chosen, prepared, readings)
             network_posterior = self._posterior(starts, 0, prepared, readings)
             fit, sexes = self._fit(starts, prepared, stated, photo)
-            return self._evidence_posterior(starts, prepared, readings, network_posterior, fit,
-                                            sexes, stated)  # fmt: skip
+            posterior = self._evidence_posterior(starts, prepared, readings, network_posterior,
+                                                 fit, sexes, stated)  # fmt: skip
+            return with_drawn_body(replace(posterior, face=photo.face))
 
     @torch.no_grad()
     def read_photo(
@@ -256,6 +266,7 @@ class Predictor:
         bbox: Sequence[float] | np.ndarray | None = None,
         upright: bool = True,
         silhouette: np.ndarray | None = None,
+        read_face: bool = True,
     ) -> PhotoReading:
         """How the person in ``image`` is read, decided on the photo without occluders
         (:mod:`hkpd.prediction.photo_reading`): the detection, the upright copy, the mirror
@@ -264,7 +275,7 @@ class Predictor:
         and given back for the same pixels and settings. Arguments and errors as
         :meth:`predict`'s."""
         with self._lock:
-            return self._photo_reading(image, bbox, upright, silhouette)
+            return self._photo_reading(image, bbox, upright, silhouette, read_face)
 
     def _photo_reading(
         self,
@@ -272,12 +283,14 @@ class Predictor:
         bbox: Sequence[float] | np.ndarray | None,
         upright: bool,
         silhouette: np.ndarray | None,
+        read_face: bool = True,
     ) -> PhotoReading:
         """:meth:`read_photo` without the lock: the kept reading, or a new one (kept unless a
         silhouette was given: its pixels are not part of the key)."""
         loaded = load_image(image)
         box = None if bbox is None else tuple(float(v) for v in np.asarray(bbox).ravel())
-        settings = (box, upright, self.reading.config, self.image_proxy, id(self.detector))
+        settings = (box, upright, self.reading.config, self.image_proxy, id(self.detector),
+                    read_face)  # fmt: skip
         key = None if silhouette is not None else photo_key(loaded, *settings)
         kept = None if key is None else self._photo_readings.get(key)
         if kept is not None:
@@ -292,10 +305,18 @@ class Predictor:
         )
         batch = self._reading_input(clear)
         readings = self.reading.read(batch, upright=upright, keep_as_it_is=True)
-        photo = PhotoReading(clear, readings, key)
+        face = self._read_face(clear) if read_face else None
+        photo = PhotoReading(clear, readings, key, face=face)
         if key is not None:
             self._photo_readings.put(photo)
         return photo
+
+    def _read_face(self, clear: NetworkInput) -> FaceWord | None:
+        """What the face of ``clear``'s person says of the sex (:mod:`hkpd.prediction.
+        face_evidence`); None without sex priors (nothing would read it)."""
+        if not self.body.has_sex_priors:
+            return None
+        return face_word(self.face_reader.read(clear.image, clear.detection))
 
     def _boxed(
         self, photo: PhotoReading, occluders: Occluders, silhouette: np.ndarray | None
