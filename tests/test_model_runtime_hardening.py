@@ -172,12 +172,17 @@ def test_nan_weights_are_refused(tmp_path) -> None:
         ([placeholder("x", [2]), node("a", "Relu", ["missing"])], ("'missing'", "no node")),
         ([placeholder("x", [2]), const("c"), node("a", "Add", ["x", "c"])], ("without a weight",)),
         ([placeholder("x", [2]), placeholder("x", [2])], ("two nodes",)),
+        (
+            [placeholder("x", [2]), const("k"), node("a", "Add", ["x", "k:3"])],
+            ("'k:3'", "no output"),
+        ),
         ([{"op": "Relu"}], ("'name'",)),
         ([placeholder("x", [2]), node("a", "Relu", ["x", 5])], ("not a name",)),
     ],
 )
 def test_malformed_graphs_are_refused(tmp_path, nodes, words) -> None:
-    _refused(write_model(tmp_path, nodes, {}), *words)
+    weights = {"k": np.zeros(2, np.float32)} if const("k") in nodes else {}
+    _refused(write_model(tmp_path, nodes, weights), *words)
 
 
 def _conv_node(**overrides) -> list[dict]:

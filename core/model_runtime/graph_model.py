@@ -197,6 +197,10 @@ class GraphModel:
                 self._constants[(name, 0)] = self._constant(node, graph)
                 continue
             references = [parse_reference(ref) for ref in node.inputs]
+            for reference in references:
+                folded = (reference[0], 0) in self._constants
+                if folded and reference not in self._constants:
+                    raise self._error(node, f"reads {reference_name(reference)!r}, no output")
             constants = [self._constants.get(ref) for ref in references]
             try:
                 prepared = prepare_op(node, constants)
@@ -220,7 +224,9 @@ class GraphModel:
         try:
             with torch.no_grad():
                 outputs = prepared.function(arguments, prepared.params)
-        except (RuntimeError, IndexError, TypeError) as error:
+        except NodeError:
+            raise
+        except (RuntimeError, IndexError, TypeError, ValueError) as error:
             raise self._error(node, f"folding it failed: {error}") from None
         for index, value in enumerate(outputs):
             self._constants[(node.name, index)] = value
@@ -349,7 +355,7 @@ class GraphModel:
         arguments = [None if read is None else values[read] for read in step.reads]
         try:
             results = step.prepared.function(arguments, step.prepared.params)
-        except (NodeError, RuntimeError, IndexError) as error:
+        except (RuntimeError, IndexError, TypeError, ValueError) as error:
             message = str(error).splitlines()[0] if str(error) else type(error).__name__
             raise GraphRunError(
                 f"{self.path}: node {step.node.name!r} ({step.node.op}) failed: {message}"
