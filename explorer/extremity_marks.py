@@ -113,6 +113,8 @@ class ExtremityMarks:
         placement, marks = self.scene.placement, self.marks
         if placement is None or marks is None or not len(marks.points):
             return
+        shown = placement.on_photo(marks.points)  # none drawn beside or below the photo
+        marks = LandmarkMarks(marks.points[shown], marks.evidence[shown])
         centres = photo_points(placement, marks.points)
         api = self.scene.server.scene
         if marks.evidence.any():

@@ -46,6 +46,39 @@ class PhotoPlacement:
         size = np.array([self.width_px, self.height_px], dtype=np.float64)
         return (pixels - size / 2.0) * self.metres_per_pixel
 
+    def on_photo(self, pixels: np.ndarray) -> np.ndarray:
+        """``(N, 2)`` photo pixels (pixel-centre coordinates) -> ``(N,)`` bool: on the photo
+        (what is drawn over the photo is drawn only there, never below or beside it)."""
+        points = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        inside = (points >= -0.5).all(axis=1) & np.isfinite(points).all(axis=1)
+        return (
+            inside & (points[:, 0] <= self.width_px - 0.5) & (points[:, 1] <= self.height_px - 0.5)
+        )
+
+    def clip_image(
+        self, rgba: np.ndarray, box: tuple[float, float, float, float]
+    ) -> tuple[np.ndarray, tuple[float, float, float, float]] | None:
+        """The part of an image ``(S, S, 4)`` pasted over photo box ``box`` (photo pixels,
+        corners) that lies on the photo, and that part's box; None when none does."""
+        x0, y0, x1, y1 = box
+        rows, cols = rgba.shape[:2]
+        per_col, per_row = cols / max(x1 - x0, 1e-9), rows / max(y1 - y0, 1e-9)
+        left, top = (
+            max(0, int(np.ceil(-x0 * per_col - 1e-9))),
+            max(0, int(np.ceil(-y0 * per_row - 1e-9))),
+        )
+        right = min(cols, int(np.floor((self.width_px - x0) * per_col + 1e-9)))
+        bottom = min(rows, int(np.floor((self.height_px - y0) * per_row + 1e-9)))
+        if right <= left or bottom <= top:
+            return None
+        kept = (
+            x0 + left / per_col,
+            y0 + top / per_row,
+            x0 + right / per_col,
+            y0 + bottom / per_row,
+        )
+        return rgba[top:bottom, left:right], kept
+
     def world_to_pixels(self, points: np.ndarray) -> np.ndarray:
         """``(..., 3)`` world points ON the photo plane to ``(..., 2)`` pixel coordinates."""
         points = np.asarray(points, dtype=np.float64)

@@ -256,10 +256,11 @@ class ExplorerScene:
             colours = np.where(
                 (np.asarray(confidences) >= 0.6)[:, None], [[40, 220, 90]], [[235, 50, 50]]
             ).astype(np.uint8)
+            shown = self.placement.on_photo(keypoints)  # none drawn beside or below the photo
             self.server.scene.add_point_cloud(
                 "/photo/keypoints",
-                self._photo_points(keypoints),
-                colours,
+                self._photo_points(np.asarray(keypoints)[shown]),
+                colours[shown],
                 point_size=0.018,
                 point_shape="circle",
                 point_shading="flat",
@@ -269,20 +270,25 @@ class ExplorerScene:
         self, rgba: np.ndarray | None, box: tuple[float, float, float, float] | None
     ) -> None:
         """The mode mesh rendered with the predicted camera, pasted over the photo's crop box
-        (``rgba (S, S, 4)`` uint8, ``box`` in photo pixels); None hides it."""
+        (``rgba (S, S, 4)`` uint8, ``box`` in photo pixels); None hides it. Only the part on
+        the photo is drawn (a crop box reaching past the photo's edge left the body drawn
+        below it)."""
         with self._lock:
             if self._fit_node is not None:
                 self._fit_node.remove()
                 self._fit_node = None
             if rgba is None or box is None or self.placement is None:
                 return
-            x0, y0, x1, y1 = box
+            clipped = self.placement.clip_image(np.asarray(rgba), box)
+            if clipped is None:
+                return
+            rgba, (x0, y0, x1, y1) = clipped
             centre = self._photo_points(np.array([[(x0 + x1) / 2, (y0 + y1) / 2]]) - 0.5)[0]
             centre[2] = 1.5 * OVERLAY_LIFT
-            side_m = (x1 - x0) * self.placement.metres_per_pixel
+            metres = self.placement.metres_per_pixel
             self._fit_node = self.server.scene.add_image(
-                "/photo/fit", rgba, side_m, side_m, format="png", position=tuple(centre),
-                cast_shadow=False, receive_shadow=False,
+                "/photo/fit", np.ascontiguousarray(rgba), (x1 - x0) * metres, (y1 - y0) * metres,
+                format="png", position=tuple(centre), cast_shadow=False, receive_shadow=False,
             )  # fmt: skip
 
     def show_person_box(self, box: tuple[float, float, float, float] | None) -> None:

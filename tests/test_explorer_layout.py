@@ -145,3 +145,38 @@ def test_set_layout_moves_the_drawn_columns(app) -> None:
         assert nodes["/legend"].position[0] == pytest.approx(HEATMAP_OFFSET)
     finally:
         app.scene.set_layout(old)
+
+
+def test_nothing_drawn_over_the_photo_spills_past_its_edges(app) -> None:
+    """Issue 58: keypoints, hand/foot marks and the fitted body were drawn below the photo's
+    bottom edge when the detector placed them (or the crop box reached) past it."""
+    scene, placement = app.scene, app.scene.placement
+    nodes = app.server.scene._handle_from_node_name
+    width, height = placement.width_px, placement.height_px
+    half_w, half_h = placement.width_m / 2, placement.height_m / 2
+    keypoints = np.tile([[width / 2, height / 2]], (17, 1)).astype(float)
+    keypoints[15:] = [[width * 0.4, height + 40], [width * 0.6, height + 90]]  # ankles below
+    try:
+        scene.show_keypoints(keypoints, np.ones(17))
+        drawn = nodes["/photo/keypoints"].points
+        assert len(drawn) == 15 and (np.abs(drawn[:, :2]) <= [half_w, half_h]).all()
+        rgba = np.full((256, 256, 4), 200, np.uint8)
+        box = (width * 0.3, height * 0.5, width * 0.3 + height, height * 1.5)  # half below
+        scene.show_fit_overlay(rgba, box)
+        fit = nodes["/photo/fit"]
+        assert fit.render_height == pytest.approx(half_h, rel=0.02)  # the upper half only
+        assert fit.position[1] + fit.render_height / 2 <= half_h + 1e-6
+        assert fit.position[1] - fit.render_height / 2 >= 0.0 - 1e-6
+        landmarks = SimpleNamespace(
+            network_input=SimpleNamespace(detection=SimpleNamespace(extremities=np.array(
+                [[width * 0.5, height * 0.5], [width * 0.5, height + 30.0]]
+            )), extremity_evidence=np.array([True, True])),
+        )  # fmt: skip
+        app.landmark_marks.show(landmarks)
+        assert len(nodes["/photo/landmarks/evidence"].points) == 1
+    finally:
+        app.show_fit(True, 0.55)
+        app.scene.show_keypoints(
+            app.result.posterior.keypoints.numpy(), app.result.posterior.confidences.numpy()
+        )
+        app.landmark_marks.show(app.result.posterior)
