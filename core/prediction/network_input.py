@@ -121,26 +121,22 @@ def prepare_network_input(
     extraction, and the keypoints that are not evidence
     (:func:`hkpd.prediction.evidence_rule.evidence_mask`: below the confidence threshold,
     outside the photo or the searched box, or under an occluder) get confidence 0, so the
-    heatmaps show exactly the evidence. (Detecting
-    on the painted photo let BlazePose put confident keypoints just outside a box.) Without
-    occluders nothing changes.
+    heatmaps show exactly the evidence. (Detecting on the painted photo let BlazePose put
+    confident keypoints just outside a box.) Without occluders nothing changes.
 
     Args:
         image: anything :func:`load_image` accepts.
         detector: the (shared, reusable) keypoint detector.
         bbox: optional ``(x0, y0, x1, y1)`` search region, original-photo pixels.
-        occluders: black boxes, original-photo pixels (:class:`Occluders`, or boxes that
-            :meth:`Occluders.of` turns into them).
+        occluders: black boxes, original-photo pixels (:class:`Occluders` or what
+            :meth:`Occluders.of` takes).
         max_side: working-resolution cap passed to :func:`load_image`.
         crop_size: side of the crop and proxy in pixels (the network's input size).
-        image_proxy: the image part of the proxy (:data:`hkpd.proxy.IMAGE_PROXIES`; the
-            network's ``config.image_proxy``).
-        silhouette: ``(H, W)`` bool mask of the person at the photo's original resolution;
-            required by the ``"silhouette"`` proxy (e.g. a COCO person mask), ignored
-            otherwise. Occluders are removed from it.
-        detection: the detector's result on this photo (unpainted, in ``bbox``) when it is
-            already known (:class:`hkpd.prediction.photo_reading.PhotoReading`): the detector
-            is not run again.
+        image_proxy: the proxy's image part (:data:`hkpd.proxy.IMAGE_PROXIES`, the network's).
+        silhouette: ``(H, W)`` bool person mask, original resolution, for the ``"silhouette"``
+            proxy (e.g. a COCO person mask; occluders are removed from it); ignored otherwise.
+        detection: the detector's result on this unpainted photo (in ``bbox``) when known
+            (:class:`hkpd.prediction.photo_reading.PhotoReading`): not detected again.
 
     Returns:
         The :class:`NetworkInput`.
@@ -155,8 +151,7 @@ def prepare_network_input(
     loaded = load_image(image, max_side=max_side)
     if image_proxy == "silhouette":
         silhouette = _checked_silhouette(silhouette, loaded)
-    if detection is None:  # the unpainted photo (see the docstring)
-        detection = detector.detect(loaded, bbox=bbox)
+    detection = detector.detect(loaded, bbox=bbox) if detection is None else detection
     if len(occluders):
         loaded = apply_occluders(loaded, occluders)
     frame = evidence_frame(detection.image_size, detection.search_box)

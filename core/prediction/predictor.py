@@ -189,13 +189,9 @@ class Predictor:
         reading: PhotoReading | None = None,
         read_face: bool = True,
     ) -> BodyPosterior:
-        """The body posterior of the person in ``image``.
-
-        How the photo is read (the detection, the upright copy, the mirror choice, the sexes'
-        weights) belongs to the photo, not to the occluders: it is decided once on the photo
-        without occluders (:meth:`read_photo`, kept for the last few photos) and kept when
-        occluders change, so that a box only removes evidence
-        (:mod:`hkpd.prediction.photo_reading`).
+        """The body posterior of the person in ``image``, read as :meth:`read_photo` reads the
+        photo without occluders (a box removes evidence; it does not change how the photo is
+        read: :mod:`hkpd.prediction.photo_reading`).
 
         Args:
             image: a file path, an ``(H, W, 3)`` uint8 RGB array, a PIL image, or a
@@ -228,10 +224,8 @@ class Predictor:
                 ``"chest_m"``, ``"waist_m"``, ``"hip_m"``, ``"shoulder_width_m"`` (metres,
                 kilograms; default stds :data:`hkpd.stated_body.DEFAULT_STATED_STD`):
                 evidence on the shape, weighed before the fit.
-            reading: the photo's :class:`PhotoReading` from :meth:`read_photo` (its photo,
-                person box and upright setting are used: ``image``, ``bbox``, ``upright`` and
-                ``silhouette`` are then not read again); None: the one kept for this photo and
-                these settings, made now when there is none.
+            reading: a :class:`PhotoReading` from :meth:`read_photo` to use (``image``,
+                ``bbox``, ``upright``, ``silhouette`` then unread); None: the one kept or new.
             read_face: let the face tell the sex too (:mod:`hkpd.prediction.face_evidence`:
                 HSE FaceRes on the face square cut from BlazePose's face landmarks, read once
                 per photo and person, calibrated; ``posterior.sex_evidence`` keeps its word
