@@ -78,3 +78,25 @@ def test_scaling_keeps_the_evidence_and_the_doubt() -> None:
     assert evidence.as_dict() == {"face": 0.97, "keypoints": 0.41}
     assert evidence.source == "face"
     assert SexEvidence(keypoints=0.5, face_reason="no face").source == "keypoints"
+
+
+def test_a_warning_doubts_a_face_read_sex_only_when_the_person_may_be_someone_else() -> None:
+    from hkpd.prediction.quality import ReadingQuality
+    from hkpd.prediction.sex_fits import doubts_the_sex
+
+    faced = SexShapes(
+        {"female": 0.02, "male": 0.98},
+        {"female": torch.zeros(10), "male": torch.ones(10)},
+        {"female": torch.eye(10), "male": torch.eye(10)},
+        evidence=SexEvidence(keypoints=0.6, face=0.99),
+    )
+    keypoints_only = SexShapes(
+        faced.probabilities, faced.means, faced.covariances, evidence=SexEvidence(keypoints=0.98)
+    )
+    fine = ReadingQuality(0.9, (), {})
+    cut_off = ReadingQuality(0.3, ("cut_off_by_edge", "readers_disagree"), {})
+    neighbour = ReadingQuality(0.3, ("off_centre_in_box",), {})
+    assert not doubts_the_sex(faced, fine) and not doubts_the_sex(keypoints_only, fine)
+    assert not doubts_the_sex(faced, cut_off)
+    assert doubts_the_sex(keypoints_only, cut_off)
+    assert doubts_the_sex(faced, neighbour)

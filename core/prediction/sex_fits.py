@@ -27,6 +27,7 @@ from hkpd.conditioning import (
 )
 from hkpd.distributions import BodyDistribution
 from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.quality import ReadingQuality
 from hkpd.prediction.sex_latent import (
     NEUTRAL,
     FaceWord,
@@ -36,8 +37,10 @@ from hkpd.prediction.sex_latent import (
 )
 
 __all__ = [
+    "FACE_DOUBT_FLAGS",
     "FaceWord",
     "SexFits",
+    "doubts_the_sex",
     "fit_each_sex",
     "sex_shape_priors",
     "with_drawn_body",
@@ -171,14 +174,31 @@ def with_sex_shape(posterior: BodyPosterior, shapes: SexShapes) -> BodyPosterior
     return edited
 
 
+FACE_DOUBT_FLAGS = frozenset({"off_centre_in_box"})
+"""Warnings that doubt a face-read sex too: the person read may be someone beside the one asked
+for, and so may their face. Other warnings (keypoints cut off, readers that disagree on a limb)
+doubt the pose, not whose face was read: on coco_mini val2017 every face-read sex doubted by
+them alone was right (7 of 7; docs/shape.md section 7)."""
+
+
+def doubts_the_sex(sexes: SexShapes, quality: ReadingQuality) -> bool:
+    """Whether a sure, unstated sex is in doubt on a reading of this quality: the reading is
+    warned about (:attr:`ReadingQuality.low`) and either the face said nothing (the sex is the
+    keypoints' alone) or a warning says the person read may be someone else
+    (:data:`FACE_DOUBT_FLAGS`)."""
+    if sexes.stated or not quality.low:
+        return False
+    face_spoke = sexes.evidence is not None and sexes.evidence.face is not None
+    return not face_spoke or bool(FACE_DOUBT_FLAGS.intersection(quality.flags))
+
+
 def with_drawn_body(posterior: BodyPosterior) -> BodyPosterior:
-    """``posterior`` drawing the body it may claim: a sure sex on a reading its quality score
-    warns about (:attr:`hkpd.prediction.quality.ReadingQuality.low`) is doubted, and a sex
-    that is not sure (or doubted) draws neither sex's build (:func:`with_drawn_shape`). A
-    stated sex is drawn as stated."""
+    """``posterior`` drawing the body it may claim: a sure sex that the reading's quality puts
+    in doubt (:func:`doubts_the_sex`) is doubted, and a sex that is not sure (or doubted) draws
+    neither sex's build (:func:`with_drawn_shape`). A stated sex is drawn as stated."""
     sexes = posterior.sexes
     if sexes is None or sexes.stated:
         return posterior
-    if sexes.sure and posterior.quality.low:
+    if sexes.sure and doubts_the_sex(sexes, posterior.quality):
         posterior = replace(posterior, sexes=sexes.with_doubt())
     return with_drawn_shape(posterior)
