@@ -50,6 +50,7 @@ from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
 from hkpd.prediction.detection.face_sex import FaceSexReader
 from hkpd.prediction.detection.keypoint_detector import KeypointDetector, people_by_size
+from hkpd.prediction.detection.movenet import SecondReader
 from hkpd.prediction.face_evidence import face_word
 from hkpd.prediction.image_input import LoadedImage, load_image
 from hkpd.prediction.network_input import (
@@ -141,6 +142,7 @@ class Predictor:
         self._body64: BodyModel | None = None
         self._surface: SurfaceSamples | None = None
         self._photo_readings = PhotoReadingCache()
+        self.second_reader = SecondReader()
         self.face_reader = FaceSexReader()
 
     @classmethod
@@ -187,6 +189,7 @@ class Predictor:
         sex: str | None = None,
         measurements: Mapping[str, StatedValue] | None = None,
         reading: PhotoReading | None = None,
+        second_reader: bool = True,
         read_face: bool = True,
     ) -> BodyPosterior:
         """The body posterior of the person in ``image``, read as :meth:`read_photo` reads the
@@ -226,6 +229,8 @@ class Predictor:
                 evidence on the shape, weighed before the fit.
             reading: a :class:`PhotoReading` from :meth:`read_photo` to use (``image``,
                 ``bbox``, ``upright``, ``silhouette`` then unread); None: the one kept or new.
+            second_reader: also read the person with MoveNet Thunder (once per photo and box;
+                :mod:`hkpd.prediction.reader_agreement`); False: BlazePose alone.
             read_face: let the face tell the sex too (:mod:`hkpd.prediction.face_evidence`:
                 HSE FaceRes on the face square cut from BlazePose's face landmarks, read once
                 per photo and person, calibrated; ``posterior.sex_evidence`` keeps its word
@@ -241,7 +246,9 @@ class Predictor:
         """
         stated = self._stated(sex, measurements, evidence)
         with self._lock:
-            photo = reading or self._photo_reading(image, bbox, upright, silhouette, read_face)
+            photo = reading or self._photo_reading(
+                image, bbox, upright, silhouette, second_reader, read_face
+            )
             prepared, readings = self._boxed(photo, Occluders.of(occluders), silhouette)
             starts = _float_cpu(readings.distribution)
             if not evidence:  # the upright copy's reading when there is one
@@ -260,6 +267,7 @@ class Predictor:
         bbox: Sequence[float] | np.ndarray | None = None,
         upright: bool = True,
         silhouette: np.ndarray | None = None,
+        second_reader: bool = True,
         read_face: bool = True,
     ) -> PhotoReading:
         """How the person in ``image`` is read, decided on the photo without occluders
@@ -269,7 +277,7 @@ class Predictor:
         and given back for the same pixels and settings. Arguments and errors as
         :meth:`predict`'s."""
         with self._lock:
-            return self._photo_reading(image, bbox, upright, silhouette, read_face)
+            return self._photo_reading(image, bbox, upright, silhouette, second_reader, read_face)
 
     def _photo_reading(
         self,
@@ -277,6 +285,7 @@ class Predictor:
         bbox: Sequence[float] | np.ndarray | None,
         upright: bool,
         silhouette: np.ndarray | None,
+        second_reader: bool = True,
         read_face: bool = True,
     ) -> PhotoReading:
         """:meth:`read_photo` without the lock: the kept reading, or a new one (kept unless a
@@ -284,7 +293,7 @@ class Predictor:
         loaded = load_image(image)
         box = None if bbox is None else tuple(float(v) for v in np.asarray(bbox).ravel())
         settings = (box, upright, self.reading.config, self.image_proxy, id(self.detector),
-                    read_face)  # fmt: skip
+                    second_reader, read_face)  # fmt: skip
         key = None if silhouette is not None else photo_key(loaded, *settings)
         kept = None if key is None else self._photo_readings.get(key)
         if kept is not None:
@@ -297,6 +306,8 @@ class Predictor:
             image_proxy=self.image_proxy,
             silhouette=silhouette,
         )
+        if second_reader:
+            clear = self._with_second_reading(clear)
         batch = self._reading_input(clear)
         readings = self.reading.read(batch, upright=upright, keep_as_it_is=True)
         face = self._read_face(clear) if read_face else None
@@ -311,6 +322,12 @@ class Predictor:
         if not self.body.has_sex_priors:
             return None
         return face_word(self.face_reader.read(clear.image, clear.detection))
+
+    def _with_second_reading(self, clear: NetworkInput) -> NetworkInput:
+        """``clear`` whose detection carries the second reader's reading of the person
+        (``detection.second_reading``; occluder edits keep the detection, so it is read once)."""
+        second = self.second_reader.read(clear.image, clear.detection)
+        return replace(clear, detection=replace(clear.detection, second_reading=second))
 
     def _boxed(
         self, photo: PhotoReading, occluders: Occluders, silhouette: np.ndarray | None
