@@ -22,6 +22,12 @@ After a finished run ``OUT`` holds only result folders and ``index.jsonl``. ``--
 every folder that is complete (it has its ``summary.json``: folders appear whole), removes what
 a killed run left half-written, and tries the rest again, failures included.
 
+Rank 0 draws the one progress bar (photos finished by all ranks, read from the part files) and
+prints the final line. Under torchrun every process exits 0 once the run is complete, failed
+photos included (they are in the index): a non-zero status would make torchrun stop the other
+processes and report the whole launch as failed. A process that dies makes torchrun stop the
+others (rank 0 waits for the done markers until then); ``--resume`` finishes the run.
+
 An index record (:data:`INDEX_KEYS`): ``photo`` (the path relative to the folder given on the
 command line, or as given for a file), ``folder`` (under ``OUT``), ``person`` (1, 2 ... with
 ``--all-people``, else None), ``status`` (``ok``, ``no person`` or ``error: ...``),
@@ -503,9 +509,10 @@ class RunProgress:
         for part in self.run.work.glob(f"part-{self.run.shard.run}-*.jsonl"):
             for record in self._new_records(part):
                 self._photos_seen.add(record["folder"].split("/")[0])
-                status = record.get("status", "ok")
+                status = str(record.get("status", "ok"))
                 if status != "ok" and record.get("rank") != 0 and not self.verbose:
-                    tqdm.write(f"{self.program}: FAILED {record.get('photo')}: {status}",
+                    said = status.removeprefix("error: ") if status != "no person" else status
+                    tqdm.write(f"{self.program}: FAILED {record.get('photo')}: {said}",
                                file=sys.stderr)  # fmt: skip
         self.bar.n = len(self._photos_seen)
         self.bar.refresh()
