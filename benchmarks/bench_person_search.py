@@ -7,8 +7,9 @@ models and hkpd's front end (:func:`hkpd.prediction.network_input.prepare_networ
 - the *whole-photo path*: ``prepare_network_input(photo)`` (``predict``, ``hkpd-predict``, the
   explorer's upload), person found or not;
 - the *Person menu*: ``KeypointDetector.detect_all(photo)`` (the explorer's list of people);
-- each listed person *predicted in their box*: ``prepare_network_input(photo, bbox=box)``
-  must succeed and take the same person (its landmark box overlapping the listed one by
+- each listed person *predicted in their box* (:func:`reading_box`: the person box they were
+  found in, or their landmark box): ``prepare_network_input(photo, bbox=box)`` must succeed
+  and take the same person (its landmark box overlapping the listed one by
   IoU >= :data:`SAME_PERSON_IOU`).
 
 Menu precision and recall are counted on the *multi-person photos*: photos with two or more
@@ -25,7 +26,13 @@ annotated as a crowd (``iscrowd``: people not annotated one by one) is ignored, 
 false; the precision is printed without and with that rule. Recall: the annotated people with
 enough keypoints that a listed person matched. The false entries are listed by photo.
 
+The menu is ``detect_all`` as shipped: BlazePose's detector plus NanoDet's person boxes
+(:mod:`hkpd.prediction.detection.person_detector`); ``--person-threshold`` sets NanoDet's
+score threshold, ``--no-person-boxes`` measures BlazePose's detector alone (the menu before
+issue 57).
+
 Usage: python benchmarks/bench_person_search.py COCO_DIR [--split train2017|val2017]
+    [--person-threshold T | --no-person-boxes]
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+import torch
 from PIL import Image
 
 from hkpd.prediction.detection.boxes import box_iou
@@ -46,7 +54,9 @@ from hkpd.prediction.detection.keypoint_detector import (
     KeypointDetection,
     KeypointDetector,
     NoPersonFoundError,
+    reading_box,
 )
+from hkpd.prediction.detection.person_detector import PERSON_SCORE_THRESHOLD, PersonDetector
 from hkpd.prediction.network_input import prepare_network_input
 
 MIN_ANNOTATED_KEYPOINTS = 8
@@ -151,12 +161,16 @@ def matched(listed: list[KeypointDetection], annotated: list[Annotated]) -> list
     return result
 
 
-def in_box_failure(detector: KeypointDetector, photo: Path, box: np.ndarray) -> str | None:
-    """None when the front end, asked for the person in ``box`` (as it is, and in whole pixels
-    as the explorer passes it on), takes that person; else
-    ``"nobody"`` (no person found, or the box refused) or ``"another person"``."""
+def in_box_failure(
+    detector: KeypointDetector, photo: Path, listed: KeypointDetection
+) -> str | None:
+    """None when the front end, asked for the person in the listed person's
+    :func:`reading_box` (as it is, and in whole pixels as the explorer passes it on), takes that
+    person (landmark boxes overlapping by :data:`SAME_PERSON_IOU`); else ``"nobody"`` (no person
+    found, or the box refused) or ``"another person"``."""
     width, height = Image.open(photo).size
-    for search in (box, np.round(np.clip(box, 0, [width, height, width, height]))):
+    box, handed_on = listed.person_box, reading_box(listed)
+    for search in (handed_on, np.round(np.clip(handed_on, 0, [width, height, width, height]))):
         try:
             prepared = prepare_network_input(str(photo), detector, bbox=search)
         except (NoPersonFoundError, ValueError):
@@ -179,8 +193,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("coco_dir", type=Path)
     parser.add_argument("--split", choices=("train2017", "val2017"), action="append")
+    parser.add_argument("--person-threshold", type=float, default=PERSON_SCORE_THRESHOLD)
+    parser.add_argument("--no-person-boxes", action="store_true")
     args = parser.parse_args()
+    torch.set_num_threads(1)
     detector = KeypointDetector()
+    detector.person_finder = (
+        None if args.no_person_boxes else PersonDetector(threshold=args.person_threshold)
+    )
+    print(
+        "BlazePose's detector alone"
+        if args.no_person_boxes
+        else f"with NanoDet's person boxes, threshold {args.person_threshold}"
+    )
     for split in args.split or ["train2017", "val2017"]:
         report_split(detector, args.coco_dir, split)
 
@@ -198,7 +223,7 @@ def report_split(detector: KeypointDetector, coco_dir: Path, split: str) -> None
         if listed and not whole_photo_finds(detector, photo):
             dead_ends.append(f"{photo.name} ({len(listed)} listed)")
         for i, person in enumerate(listed):
-            failure = in_box_failure(detector, photo, person.person_box)
+            failure = in_box_failure(detector, photo, person)
             if failure is not None:
                 failing.append(f"{photo.name} #{i + 1} ({failure})")
         targets = [person.count >= MIN_ANNOTATED_KEYPOINTS for person in truths]

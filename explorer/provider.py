@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from hkpd.explorer.body_settings import BodyStatement
-from hkpd.prediction.detection.keypoint_detector import people_by_size
+from hkpd.prediction.detection.keypoint_detector import people_by_size, reading_box
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.predictor import Predictor, refuse_silhouette_model
 from hkpd.stated_body import StatedValue
@@ -162,7 +162,9 @@ class PredictorProvider:
         return PredictionResult(posterior=posterior, proxy=posterior.network_input.proxy.cpu())
 
     def find_people(self, image: np.ndarray) -> list[Box]:
-        """Every person BlazePose's person detector finds (boxes of their landmarks), larger
+        """Every person the detector lists (``detect_all``: BlazePose's detector and NanoDet's
+        person boxes), each as the box that reads them (:func:`~hkpd.prediction.detection.
+        keypoint_detector.reading_box`: their person box, or their landmarks' box), larger
         people first (:func:`hkpd.prediction.detection.keypoint_detector.people_by_size`)."""
         detections = people_by_size(self.predictor.detector.detect_all(image))
-        return [tuple(float(v) for v in d.person_box) for d in detections]
+        return [tuple(float(v) for v in reading_box(d)) for d in detections]

@@ -32,7 +32,11 @@ from hkpd.evaluation.quality_metrics import quality_table
 from hkpd.evaluation.real_photos import AnnotatedPerson, load_coco_people
 from hkpd.poses import pose_source
 from hkpd.prediction.detection.boxes import box_iou
-from hkpd.prediction.detection.keypoint_detector import NoPersonFoundError, people_by_size
+from hkpd.prediction.detection.keypoint_detector import (
+    NoPersonFoundError,
+    people_by_size,
+    reading_box,
+)
 from hkpd.prediction.image_input import ImageInputError, load_image
 from hkpd.prediction.quality import SIGNAL_NAMES
 from hkpd.synthesis.augmentations import AugmentationConfig
@@ -170,7 +174,7 @@ def _detector_readings(predictor, people, show_progress: bool) -> Iterator[Quali
                 continue
             taken.add(match)
             try:
-                posterior = predictor.predict(loaded, bbox=detection.person_box)
+                posterior = predictor.predict(loaded, bbox=reading_box(detection))
             except (NoPersonFoundError, ValueError):
                 continue
             source = f"{path.parent.name}/detector"

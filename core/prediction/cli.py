@@ -77,7 +77,7 @@ from hkpd.prediction.dataset_run import (
     is_complete,
     photo_labels,
 )
-from hkpd.prediction.detection.keypoint_detector import people_by_size
+from hkpd.prediction.detection.keypoint_detector import people_by_size, reading_box
 from hkpd.prediction.exports.body_summary import body_arrays, body_summary, posterior_caption
 from hkpd.prediction.exports.combined_shape import CombinedBody, write_combined_shape
 from hkpd.prediction.exports.uncertainty_colours import UncertaintyColourScale
@@ -826,7 +826,7 @@ def _photo_jobs(
     else:
         if people:
             return [
-                (image, f"{name}/person_{index}", tuple(float(v) for v in person.person_box))
+                (image, f"{name}/person_{index}", tuple(float(v) for v in reading_box(person)))
                 for index, person in enumerate(people, start=1)
             ]
         failure = PhotoResult(image=image, error="no person was found", no_person=True)

@@ -49,7 +49,11 @@ from hkpd.devices import resolve_device
 from hkpd.distributions import BodyDistribution
 from hkpd.network.checkpoint import load_network, stored_evidence_config
 from hkpd.prediction.detection.face_sex import FaceSexReader
-from hkpd.prediction.detection.keypoint_detector import KeypointDetector, people_by_size
+from hkpd.prediction.detection.keypoint_detector import (
+    KeypointDetector,
+    people_by_size,
+    reading_box,
+)
 from hkpd.prediction.detection.movenet import SecondReader
 from hkpd.prediction.face_evidence import face_word
 from hkpd.prediction.image_input import LoadedImage, load_image
@@ -545,7 +549,9 @@ class Predictor:
     ) -> list[BodyPosterior]:
         """One posterior per person the detector finds in ``image``, in the Person menu's
         order (:func:`people_by_size`: larger people first), each predicted in its own box
-        with the same ``options`` as :meth:`predict` (``bbox`` is set per person).
+        (:func:`~hkpd.prediction.detection.keypoint_detector.reading_box`: the person box it
+        was found in, or its landmark box) with the same ``options`` as :meth:`predict`
+        (``bbox`` is set per person).
 
         Returns:
             An empty list when nobody is found.
@@ -559,7 +565,7 @@ class Predictor:
         loaded = load_image(image)
         people = people_by_size(self.detector.detect_all(loaded))
         return [
-            self.predict(loaded, bbox=person.person_box, **options)  # type: ignore[arg-type]
+            self.predict(loaded, bbox=reading_box(person), **options)  # type: ignore[arg-type]
             for person in people
         ]
 

@@ -11,7 +11,9 @@ are kept beside them as ``extremities``, with their own visibilities.
 - :meth:`KeypointDetector.detect`: one person, the detector's best; ``bbox`` restricts the
   search to one region (widened by :data:`SEARCH_BOX_PADDING`). When the detector finds nobody
   inside the box, the landmark model still looks at the box itself, taken as upright.
-- :meth:`KeypointDetector.detect_all`: one detection per person the detector finds.
+- :meth:`KeypointDetector.detect_all`: one detection per person found, by BlazePose's detector
+  or by NanoDet's whole-person boxes (:mod:`~hkpd.prediction.detection.person_detector`), each
+  person once (:mod:`~hkpd.prediction.detection.person_merge`).
 
 Coordinates are ``(u, v)`` pixels of the ORIGINAL photo (see :mod:`hkpd.prediction.image_input`),
 pixel centres at integer coordinates.
@@ -46,7 +48,9 @@ from hkpd.prediction.detection.boxes import (
     validated_box,
 )
 from hkpd.prediction.detection.landmark_spread import landmark_spread
+from hkpd.prediction.detection.person_detector import PersonBox, PersonDetector
 from hkpd.prediction.detection.person_mask import PersonMask
+from hkpd.prediction.detection.person_merge import kept_people, read_fits_box, unowned_boxes
 from hkpd.prediction.detection.warp import Region
 from hkpd.prediction.image_input import LoadedImage, load_image
 from hkpd.proxy import CONFIDENCE_THRESHOLD
@@ -63,7 +67,10 @@ __all__ = [
     "KeypointDetection",
     "KeypointDetector",
     "NoPersonFoundError",
+    "PersonFinder",
     "PoseRunner",
+    "people_by_size",
+    "reading_box",
     "same_person",
 ]
 
@@ -94,6 +101,17 @@ no person (BlazePose occasionally hallucinates a pose on clutter)."""
 
 CONFIDENT_VISIBILITY = 0.5
 """Visibility at which a keypoint counts towards :data:`MIN_CONFIDENT_KEYPOINTS`."""
+
+IN_BOX_CANDIDATES = 3
+"""When BlazePose's detector finds several people inside a box, :meth:`KeypointDetector.detect`
+reads the first this many and takes the one whose landmark box overlaps the box most (the
+person the box is about, not a neighbour whose face is inside it)."""
+
+BOX_REGION_SIDES = (REGION_SCALE, 1.7)
+"""Sides, as multiples of a box's longer side, of the upright squares in which
+:meth:`KeypointDetector.detect` looks for the person of a box when BlazePose's detector finds
+nobody there or its find yields no pose (NanoDet's boxes of small people on coco_mini
+train2017: 1.7 read 21 of 36 people, 1.4 16, 1.25 15: the landmark model wants context)."""
 
 FACE_LANDMARK_COUNT = 11
 """BlazePose's landmarks 0-10 are the face's (kept as ``KeypointDetection.face_landmarks``)."""
@@ -187,6 +205,22 @@ class PoseRunner(Protocol):
     ) -> PoseLandmarks: ...
 
 
+class PersonFinder(Protocol):
+    """What :meth:`KeypointDetector.detect_all` needs from a whole-person detector
+    (:class:`PersonDetector`, or a stand-in in tests): boxes in pixels of the array passed in,
+    highest score first."""
+
+    def find(self, pixels: np.ndarray) -> list[PersonBox]: ...
+
+
+def reading_box(detection: KeypointDetection) -> np.ndarray:
+    """The box in which :meth:`KeypointDetector.detect` reads ``detection``'s person again:
+    the box it was found in (``search_box``: a person box of :meth:`KeypointDetector.detect_all`
+    or the user's box), else its landmark box. :meth:`hkpd.prediction.Predictor.predict_all`,
+    ``hkpd-predict --all-people`` and the Person menu predict each person in it."""
+    return detection.person_box if detection.search_box is None else detection.search_box
+
+
 def people_by_size(detections: Sequence[KeypointDetection]) -> list[KeypointDetection]:
     """``detections`` ranked by the area of their person boxes, largest first (a stable sort:
     equal sizes keep the detector's order), so people far smaller than the largest, e.g.
@@ -212,6 +246,9 @@ class KeypointDetector:
             either way; the head costs about 3.4 ms CPU a call, docs/benchmarks.md).
         min_detection_confidence: BlazePose's person-detector threshold.
         runner: the pose model (default: :class:`BlazePose` with the shipped models).
+        person_finder: the whole-person boxes :meth:`detect_all` reads the people BlazePose's
+            detector missed in (default: the shipped NanoDet, :class:`PersonDetector`, when
+            ``runner`` is the default too; none with a stand-in ``runner``).
     """
 
     def __init__(
@@ -219,10 +256,14 @@ class KeypointDetector:
         segmentation: bool = True,
         min_detection_confidence: float = 0.5,
         runner: PoseRunner | None = None,
+        person_finder: PersonFinder | None = None,
     ) -> None:
         self.segmentation = segmentation
         self.min_detection_confidence = min_detection_confidence
         self._runner = runner
+        if person_finder is None and runner is None:
+            person_finder = PersonDetector()
+        self.person_finder = person_finder
         self._lock = threading.Lock()
         self._closed = False
 
@@ -310,18 +351,32 @@ class KeypointDetector:
         self, loaded: LoadedImage, search_box: np.ndarray, spread: bool = True
     ) -> KeypointDetection:
         """The detector's best person inside the checked ``search_box`` (original pixels);
-        ``spread``: also measure its ``landmark_spread``."""
+        ``spread``: also measure its ``landmark_spread``.
+
+        The landmark model looks where BlazePose's detector found the person (of several, the
+        one whose landmarks fill the box best: :func:`_person_of_box`); when it found nobody,
+        or no person is read there, it looks at the box itself, taken as upright, in squares
+        of :data:`BOX_REGION_SIDES` times the box's longer side, the first read person
+        taken."""
         x0, y0, x1, y1 = search_region(loaded, search_box)
         pixels = np.ascontiguousarray(loaded.pixels[y0:y1, x0:x1])
         with self._lock:
             runner = self._pose_runner()
             start = time.perf_counter()
             people = runner.find_people(pixels)
-            score: float | None = people[0].score if people else None
-            look_at = people[0].region if people else _box_region(x1 - x0, y1 - y0)
-            found = runner.landmarks(pixels, look_at, self.segmentation)
-            seconds = time.perf_counter() - start
-            detection = _to_detection(found, loaded, (x0, y0), search_box, seconds, score)
+            if len(people) > 1:
+                sx, sy = loaded.scale
+                corners = (search_box + 0.5) * np.array([sx, sy, sx, sy]) - 0.5
+                box = corners - np.array([x0, y0, x0, y0], np.float64)
+                people = [_person_of_box(runner, pixels, people, box)]
+            looks = [(people[0].region, people[0].score)] if people else []
+            looks += [(_box_region(x1 - x0, y1 - y0, side), None) for side in BOX_REGION_SIDES]
+            for look_at, score in looks:
+                found = runner.landmarks(pixels, look_at, self.segmentation)
+                seconds = time.perf_counter() - start
+                detection = _to_detection(found, loaded, (x0, y0), search_box, seconds, score)
+                if detection is not None:
+                    break
             if detection is not None and spread:
                 moved = landmark_spread(runner, pixels, found, COCO_FROM_BLAZEPOSE)
                 detection = replace(detection, landmark_spread=moved)
@@ -351,9 +406,17 @@ class KeypointDetector:
           same person (landmark boxes overlapping by :data:`SAME_PERSON_IOU`): whoever is
           listed can be predicted in their box.
 
+        Then the people BlazePose's detector missed (:meth:`_whole_people`): the
+        ``person_finder`` (NanoDet) boxes every person; each box no listed person owns
+        (:func:`~hkpd.prediction.detection.person_merge.unowned_boxes`) is read with
+        :meth:`detect` in that box, and listed when it takes someone who owns a box, is not
+        listed yet and is confirmed as above. Last, a listed person owning no box who lies
+        inside a box another listed person owns is that person read twice and is dropped
+        (:func:`~hkpd.prediction.detection.person_merge.kept_people`).
+
         The list is empty when nobody is found (no exception). ``seconds`` of each is the time
-        of the grid search. Each listed person's ``landmark_spread`` is measured (one more
-        landmark run each).
+        of the grid search (of the read in its box for a person found by ``person_finder``).
+        Each listed person's ``landmark_spread`` is measured (one more landmark run each).
 
         Raises:
             ImageInputError: ``image`` could not be loaded.
@@ -370,7 +433,34 @@ class KeypointDetector:
         with self._lock:
             runner = self._pose_runner()
             spreads = [landmark_spread(runner, loaded.pixels, f, COCO_FROM_BLAZEPOSE) for f in read]
-        return [replace(d, landmark_spread=m) for d, m in zip(listed, spreads, strict=True)]
+        listed = [replace(d, landmark_spread=m) for d, m in zip(listed, spreads, strict=True)]
+        return self._whole_people(loaded, listed)
+
+    def _whole_people(
+        self, loaded: LoadedImage, listed: list[KeypointDetection]
+    ) -> list[KeypointDetection]:
+        """``listed`` with the people of the ``person_finder``'s boxes it lacks added, and
+        anyone read twice dropped (see :meth:`detect_all`)."""
+        if self.person_finder is None:
+            return listed
+        boxes = [
+            _box_to_original(found.box, loaded) for found in self.person_finder.find(loaded.pixels)
+        ]
+        read_in: list[int | None] = [None] * len(listed)
+        for index in unowned_boxes([d.person_box for d in listed], boxes):
+            try:
+                box = validated_box(boxes[index], loaded.original_size)
+                detection = self._detect_in_box(loaded, box)
+            except (NoPersonFoundError, ValueError):
+                continue
+            confident = detection.confidences >= CONFIDENT_VISIBILITY
+            if not read_fits_box(detection.keypoints, confident, box):
+                continue
+            if not any(same_person(detection, other) for other in listed):
+                listed.append(detection)
+                read_in.append(index)
+        kept = kept_people([d.person_box for d in listed], boxes, read_in)
+        return [listed[i] for i in kept]
 
     def _grid_candidates(
         self, loaded: LoadedImage, tiles: int
@@ -460,11 +550,36 @@ def same_person(first: KeypointDetection, second: KeypointDetection) -> bool:
     return float(np.median(distance)) <= SAME_KEYPOINTS_DISTANCE * min(sides)
 
 
-def _box_region(width: int, height: int) -> Region:
-    """The upright landmark region for a search region of ``width × height`` pixels that the
-    detector found nobody in: centred on it, side :data:`REGION_SCALE` × its longer side."""
+def _person_of_box(
+    runner: PoseRunner, pixels: np.ndarray, people: list[PersonCandidate], box: np.ndarray
+) -> PersonCandidate:
+    """Of the candidates BlazePose's detector found in ``pixels`` (best first), the one among
+    the first :data:`IN_BOX_CANDIDATES` whose landmarks' box overlaps ``box`` (``pixels``'s
+    coordinates) most; the first on a tie or when no pose is present."""
+    best, best_iou = people[0], -1.0
+    for person in people[:IN_BOX_CANDIDATES]:
+        found = runner.landmarks(pixels, person.region)
+        if found.presence < POSE_PRESENCE_THRESHOLD:
+            continue
+        landmark_box = np.concatenate([found.points.min(axis=0), found.points.max(axis=0)])
+        iou = box_iou(landmark_box, box)
+        if iou > best_iou:
+            best, best_iou = person, iou
+    return best
+
+
+def _box_region(width: int, height: int, side: float = REGION_SCALE) -> Region:
+    """The upright landmark region for a search region of ``width × height`` pixels (the box
+    widened by :data:`SEARCH_BOX_PADDING`): centred on it, ``side`` × the box's longer side."""
     centre = np.array([width / 2 - 0.5, height / 2 - 0.5])
-    return Region(centre, REGION_SCALE * max(width, height) / (1 + 2 * SEARCH_BOX_PADDING), 0.0)
+    return Region(centre, side * max(width, height) / (1 + 2 * SEARCH_BOX_PADDING), 0.0)
+
+
+def _box_to_original(box: np.ndarray, loaded: LoadedImage) -> np.ndarray:
+    """``(x0, y0, x1, y1)`` working-image pixels -> whole original-photo pixels, clipped to
+    the photo (whole pixels, as the explorer passes boxes on)."""
+    corners = loaded.to_original(np.asarray(box, np.float64).reshape(2, 2))
+    return np.round(clipped_box(corners, loaded.original_size))
 
 
 def _shifted(person: PersonCandidate, dx: int, dy: int) -> PersonCandidate:
