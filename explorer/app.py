@@ -79,7 +79,7 @@ from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.shape_combination import CombinedShape
 
 PREDICTION_DEBOUNCE_S = 0.12
-"""Occluder edits closer together than this trigger one prediction."""
+"""Occluder edits closer together than this are coalesced (an isolated edit predicts at once)."""
 
 PEOPLE_SEARCH_DELAY_S = 0.3
 """The person search for the menu waits this long after a new photo's first view, so that the
@@ -402,7 +402,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             snapshot = self.state.snapshot()
             self.scene.show_occluders(snapshot.occluders)
             self.panels.photo.occluders.show(snapshot.occluders, snapshot.image_size)
-            self.worker.submit("predict", self._predict_job, delay_s=PREDICTION_DEBOUNCE_S)
+            self.worker.submit("predict", self._predict_job, PREDICTION_DEBOUNCE_S, leading=True)
         return changed
 
     def sampling_changed(self, changed: bool) -> None:

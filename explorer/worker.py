@@ -5,7 +5,9 @@ Each *lane* ("predict", "sample", ...) holds at most ONE pending job; a newer su
 replaces the older one, so dragging a slider through fifty values runs a handful of jobs, not
 fifty. A submission may carry a debounce delay: the job runs only once no newer submission
 for its lane arrived for that long (used for predictions, which are slow, while a box is being
-resized). When several lanes are due, the one listed first runs first.
+resized); with ``leading`` an isolated submission (nothing pending or submitted in its lane for
+that long) runs at once, and only the ones that follow it closely wait. When several lanes are
+due, the one listed first runs first.
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ class CoalescingWorker:
     on_job_end: Callable[[str], None] | None = None
     stats: dict[str, LaneStats] = field(init=False)
     _pending: dict[str, _Pending] = field(init=False, default_factory=dict)
+    _last_submitted: dict[str, float] = field(init=False, default_factory=dict)
     _running: str | None = field(init=False, default=None)
     _stopping: bool = field(init=False, default=False)
     _condition: threading.Condition = field(init=False, default_factory=threading.Condition)
@@ -83,7 +86,7 @@ class CoalescingWorker:
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout)
 
-    def submit(self, lane: str, job: Job, delay_s: float = 0.0) -> None:
+    def submit(self, lane: str, job: Job, delay_s: float = 0.0, leading: bool = False) -> None:
         """Make ``job`` the pending job of ``lane``, replacing any job not yet started.
 
         Args:
@@ -91,6 +94,9 @@ class CoalescingWorker:
             job: callable without arguments, run in the worker thread.
             delay_s: debounce: run no earlier than this many seconds from now (a newer
                 submission restarts the wait).
+            leading: run at once when the lane has nothing pending and its last submission is
+                ``delay_s`` old or more (an isolated edit waits for nothing; issue 58: the
+                explorer's occluder edits); the submissions that follow it closely wait.
         """
         if lane not in self.stats:
             raise ValueError(f"unknown lane {lane!r}; lanes are {list(self.lanes)}")
@@ -101,7 +107,11 @@ class CoalescingWorker:
             stats.submitted += 1
             if lane in self._pending:
                 stats.superseded += 1
-            self._pending[lane] = _Pending(job, time.monotonic() + max(delay_s, 0.0))
+            now, wait = time.monotonic(), max(delay_s, 0.0)
+            last = self._last_submitted.get(lane)
+            isolated = lane not in self._pending and (last is None or now - last >= wait)
+            self._last_submitted[lane] = now
+            self._pending[lane] = _Pending(job, now if leading and isolated else now + wait)
             self._condition.notify_all()
 
     def wait_idle(self, timeout: float = 10.0) -> bool:

@@ -173,6 +173,26 @@ def test_worker_debounce_waits_for_a_pause_and_priority_orders_lanes():
     assert elapsed >= 0.2 + 4 * 0.02 - 0.01
 
 
+def test_worker_runs_an_isolated_leading_submission_at_once_and_debounces_a_burst():
+    worker = CoalescingWorker(("predict",)).start()
+    ran: list[tuple[int, float]] = []
+    started = time.monotonic()
+    worker.submit("predict", lambda: ran.append((0, time.monotonic())), 0.5, leading=True)
+    assert worker.wait_idle(5.0)
+    assert ran[0][1] - started < 0.25  # isolated: no 0.5 s wait (issue 58)
+    time.sleep(0.6)
+    burst_start = time.monotonic()
+    for value in range(1, 6):
+        worker.submit("predict", lambda v=value: ran.append((v, time.monotonic())), 0.3,
+                      leading=True)  # fmt: skip
+        time.sleep(0.02)
+    assert worker.wait_idle(5.0)
+    worker.stop()
+    values = [value for value, _ in ran[1:]]
+    assert values == [1, 5]  # the burst's first at once, then its last after the pause
+    assert ran[1][1] - burst_start < 0.2 and ran[2][1] - burst_start >= 0.3 + 4 * 0.02 - 0.01
+
+
 def test_worker_survives_a_failing_job():
     errors: list[str] = []
     worker = CoalescingWorker(("a",), on_error=lambda lane, e: errors.append(str(e))).start()
