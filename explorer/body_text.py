@@ -80,12 +80,31 @@ def sex_markdown(posterior: object | None, evidence: bool, can_state: bool) -> s
     if words.startswith("not sure"):
         return (
             f"**Sex: {words} — pick the sex below.** *The body drawn is neither sex's (no "
-            "chest or hips of either) until the photo or you say which: keypoints barely tell "
-            "the sexes apart, and no face was read clearly enough.*"
+            "chest or hips of either) until the photo or you say which: the body's proportions "
+            f"barely tell the sexes apart, and {face_clause(posterior)}.*"
         )
     if words.endswith("(stated)"):
         return f"**Sex: {words}.**"
     return f"**Sex: {words}** *(state it below if it is wrong).*"
+
+
+def face_clause(posterior: object) -> str:
+    """Why the face did not settle the sex, in words: "the face was not read (switched off)",
+    "the face said nothing: the head is turned away from the camera", "the face's word (male
+    75 %) is not clear enough", or "this reading is in doubt"."""
+    sexes = getattr(posterior, "sexes", None)
+    evidence = getattr(sexes, "evidence", None)
+    if getattr(sexes, "doubted", False):
+        return "this reading is in doubt (see the quality line)"
+    if evidence is None:
+        return "no face was read"
+    if evidence.face is None:
+        if evidence.face_reason is None:
+            return "the face was not read (switched off)"
+        return f"the face said nothing: {evidence.face_reason}"
+    sex = "male" if evidence.face >= 0.5 else "female"
+    percent = 100 * max(evidence.face, 1 - evidence.face)
+    return f"the face's word ({sex} {percent:.0f} %) is not clear enough"
 
 
 def measurement_markdown(

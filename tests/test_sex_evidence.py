@@ -100,3 +100,20 @@ def test_a_warning_doubts_a_face_read_sex_only_when_the_person_may_be_someone_el
     assert not doubts_the_sex(faced, cut_off)
     assert doubts_the_sex(keypoints_only, cut_off)
     assert doubts_the_sex(faced, neighbour)
+
+
+def test_the_body_section_says_why_the_face_did_not_settle_the_sex() -> None:
+    from types import SimpleNamespace
+
+    from hkpd.explorer.body_text import face_clause
+
+    def posterior(evidence: SexEvidence | None, doubted: bool = False) -> SimpleNamespace:
+        return SimpleNamespace(sexes=SimpleNamespace(evidence=evidence, doubted=doubted))
+
+    off = posterior(SexEvidence(keypoints=0.5))
+    assert face_clause(off) == "the face was not read (switched off)"
+    back = posterior(SexEvidence(keypoints=0.5, face_reason="the head is turned away"))
+    assert face_clause(back) == "the face said nothing: the head is turned away"
+    weak = posterior(SexEvidence(keypoints=0.5, face=0.25))
+    assert face_clause(weak) == "the face's word (female 75 %) is not clear enough"
+    assert "in doubt" in face_clause(posterior(SexEvidence(keypoints=0.9, face=0.99), True))
