@@ -43,6 +43,7 @@ from hkpd.explorer.framing import (
     PANEL_WIDTH_PX,
     body_reach,
     framing,
+    page_camera,
 )
 from hkpd.explorer.html_page import SceneCaption, describe_scene, scene_page
 from hkpd.explorer.layout import ColumnLayout, column_layout
@@ -272,7 +273,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         if caption is None:
             raise RuntimeError("nothing to save yet: the first prediction has not finished")
         scene = None if self.keeper.photo is None else self.keeper.scene().to_json()
-        with self.scene.static_titles():
+        with self.scene.static_titles(), page_camera(self.server.initial_camera, **self._row()):
             return scene_page(self.server, caption, scene)
 
     def wait_idle(self, timeout: float = 30.0) -> bool:
@@ -885,15 +886,17 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         """Frame the photo, the bodies and the heatmap for new tabs and every open tab."""
         with self._lock:
             self._framed = placement
-        position, look_at = framing(
-            placement, ASSUMED_ASPECT, combined=self.scene.combined_shown,
-            compare=self.compare_columns.shown, reach=body_reach(self.result),
-            layout=self.scene.layout,
-        )  # fmt: skip
+        position, look_at = framing(aspect=ASSUMED_ASPECT, **self._row())
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
         for client in self.server.get_clients().values():
             self._frame_client(client)
+
+    def _row(self) -> dict:
+        """What :func:`framing` frames: the photo and the columns shown (by the person's reach)."""
+        return {"placement": self._framed, "combined": self.scene.combined_shown,
+                "compare": self.compare_columns.shown, "reach": body_reach(self.result),
+                "layout": self.scene.layout}  # fmt: skip
 
     def _frame_client(self, client: viser.ClientHandle, wait_s: float = 0.0) -> None:
         """Frame one tab for its own canvas shape (waiting up to ``wait_s`` for it to report)."""
@@ -912,10 +915,8 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
                     aspect = ASSUMED_ASPECT
                 else:
                     time.sleep(0.05)
-        position, look_at = framing(
-            placement, aspect, float(np.clip(free, 0.5, 1.0)), self.scene.combined_shown,
-            self.compare_columns.shown, body_reach(self.result), self.scene.layout,
-        )  # fmt: skip
+        free = float(np.clip(free, 0.5, 1.0))
+        position, look_at = framing(aspect=aspect, free_fraction=free, **self._row())
         client.camera.position = position
         client.camera.look_at = look_at
 

@@ -68,6 +68,7 @@ class KeepingActions(_Base):
             )  # fmt: skip
             self.panels.compare.numbers.content = compare_table(view, view_b)
         self.timings.compare = time.perf_counter() - started
+        self.scene.set_compared(self.compare_columns.shown)  # A's titles say "A" beside B
         if was_shown != self.compare_columns.shown:
             with self._lock:
                 placement = self._framed

@@ -35,13 +35,11 @@ COMPARE_HEAT_OFFSET = DEFAULT_LAYOUT.compare_heat_x
 
 
 def compare_titles(label: str, kind: str) -> tuple[str, str]:
-    """B's two column titles for the colouring ``kind`` (they follow the colouring)."""
-    heat = (
-        f"B ({label}): uncertainty ÷ A's"
-        if kind == "change"
-        else f"B ({label}): uncertainty over samples"
-    )
-    return f"B ({label}): most likely body + samples", heat
+    """B's two column titles for the colouring ``kind`` (they follow the colouring), in short
+    lines ("B (label):" over the column's title) so that neighbouring titles do not run into
+    each other when the columns stand close (:func:`hkpd.explorer.scene.column_titles`)."""
+    heat = "uncertainty ÷ A's" if kind == "change" else "uncertainty\nover samples"
+    return f"B ({label}):\nmost likely body\n+ samples", f"B ({label}):\n{heat}"
 
 
 class CompareColumns:
@@ -134,9 +132,6 @@ class CompareColumns:
         scene = self.server.scene
         for name, text, x in (("title_body", body_title, self.layout.compare_body_x),
                               ("title_heat", heat_title, self.layout.compare_heat_x)):  # fmt: skip
-            # Two lines ("B (label):" over the column's title), so that neighbouring titles
-            # do not run into each other when the columns stand close.
-            text = text.replace("): ", "):\n", 1)
             self._nodes[name] = scene.add_label(
                 f"/titles/compare_{name}", text, position=(x, top, 0.0), font_screen_scale=1.15,
                 anchor="bottom-center",

@@ -11,7 +11,9 @@ spaced by the person's reach (:mod:`hkpd.explorer.layout`), which narrows the ro
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 
 from hkpd.explorer.canvas_key import key_rect
 from hkpd.explorer.layout import (
@@ -34,6 +36,13 @@ its canvas size)."""
 PANEL_WIDTH_PX = 420
 """Width of viser's floating panel ("large" controls) plus its margin, CSS pixels."""
 __all__ = ["BODY_HALF_SPAN_M", "HAND_ROOM_M", "MIN_REACH_M", "body_reach", "framing"]
+PAGE_ASPECT = 1.25
+"""Canvas width / height a saved page is framed for: narrower than a laptop window, so that a
+page opened in a 4:3 or 5:4 window still shows the whole row (framed for 1.6 with room for the
+panel, a 1024 x 768 window cut the photo off at the left)."""
+PAGE_CAPTION_ROOM = 0.36
+"""Share of a saved page's height kept free at the bottom for its caption box (at most 32 % of
+the window tall, :data:`hkpd.explorer.html_page.CAPTION_STYLE`), which covered the key."""
 TITLE_ROOM_M = 0.25
 """Room above the photo's top (or 1 m) for the column titles."""
 MARGIN_M = 0.2
@@ -56,6 +65,7 @@ def framing(
     compare: bool = False,
     reach: float = BODY_HALF_SPAN_M,
     layout: ColumnLayout = DEFAULT_LAYOUT,
+    bottom_room: float = 0.0,
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Camera ``(position, look_at)`` showing photo, key, bodies and colour bars left of the
     panel.
@@ -69,6 +79,8 @@ def framing(
         reach: metres right of the uncertainty body's centre its drawing reaches
             (:func:`body_reach`).
         layout: where the columns stand (the scene's :attr:`ExplorerScene.layout`).
+        bottom_room: share of the canvas height kept free under the drawings (a saved
+            page's caption box, :data:`PAGE_CAPTION_ROOM`).
     """
     key_x, key_y, key_width, key_height = key_rect(placement)
     left = min(placement.centre[0] - placement.width_m / 2, key_x - key_width / 2) - MARGIN_M
@@ -84,7 +96,28 @@ def framing(
     tan_h = tan_v * aspect
     # The content should fill the part of the canvas that the floating panel leaves free.
     visible_width = (right - left) / free_fraction
-    distance = max(visible_width / (2 * tan_h), (top - bottom) / (2 * tan_v))
+    distance = max(visible_width / (2 * tan_h), (top - bottom) / ((1 - bottom_room) * 2 * tan_v))
     shift = (0.5 - free_fraction / 2) * 2 * distance * tan_h
-    centre = ((left + right) / 2 + shift, (top + bottom) / 2)
+    centre = ((left + right) / 2 + shift, (top + bottom) / 2 - bottom_room * distance * tan_v)
     return (centre[0], centre[1] + 0.1, distance), (centre[0], centre[1], 0.0)
+
+
+@contextlib.contextmanager
+def page_camera(initial_camera, placement: PhotoPlacement, **row: object) -> Iterator[None]:
+    """Inside: ``initial_camera`` (``server.initial_camera``, what a saved page opens with)
+    framed for a page: no control panel (the whole width), :data:`PAGE_ASPECT`, the bottom
+    :data:`PAGE_CAPTION_ROOM` left to the caption; after: as it was.
+
+    Args:
+        initial_camera: has ``position`` and ``look_at``.
+        placement: where the photo is.
+        row: :func:`framing`'s ``combined``, ``compare``, ``reach`` and ``layout``.
+    """
+    before = (initial_camera.position, initial_camera.look_at)
+    framed = framing(placement, PAGE_ASPECT, 1.0, bottom_room=PAGE_CAPTION_ROOM, **row)  # type: ignore[arg-type]
+    position, look_at = framed
+    initial_camera.position, initial_camera.look_at = position, look_at
+    try:
+        yield
+    finally:
+        initial_camera.position, initial_camera.look_at = before

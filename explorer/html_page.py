@@ -32,7 +32,8 @@ CAPTION_ID = "hkpd-caption"
 """``id`` of the caption's element in the page (tests and style sheets find it by this)."""
 
 CAPTION_STYLE = (
-    "position:fixed;left:12px;bottom:12px;max-width:min(70ch,90vw);z-index:1000;"
+    "position:fixed;left:12px;bottom:12px;max-width:min(70ch,90vw);max-height:32vh;"
+    "overflow:auto;z-index:1000;"
     "padding:8px 12px;border-radius:6px;background:rgba(255,255,255,0.9);color:#222;"
     "font:13px/1.4 system-ui,sans-serif;box-shadow:0 1px 4px rgba(0,0,0,0.25)"
 )

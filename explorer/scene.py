@@ -114,6 +114,8 @@ class ExplorerScene:
         """World height of the column titles (the combined-shape body's title too)."""
         self.static = False
         """Titles for a saved page (nothing of the live app: no "shift+drag")."""
+        self.compared = False
+        """B's columns are shown: A's titles say "A" (:meth:`set_compared`)."""
         self.layout = DEFAULT_LAYOUT
         """Where the columns stand (:meth:`set_layout`)."""
         server.scene.set_up_direction("+y")
@@ -144,10 +146,10 @@ class ExplorerScene:
         """
         with self._lock:
             assert self.placement is not None
-            photo, uncertainty = column_titles(self.heatmap.kind, self.static)
+            photo, body, uncertainty = column_titles(self.heatmap.kind, compared=self.compared)
             titles = (
                 ("photo", photo, self.placement.centre[0]),
-                ("samples", "Most likely body + samples", BODY_POSITION[0]),
+                ("samples", body, BODY_POSITION[0]),
                 ("uncertainty", uncertainty, self.layout.heat_x),
             )
             self.titles_top = top
@@ -161,6 +163,15 @@ class ExplorerScene:
                 )
             if self.legend_scale is not None:  # not while no body is drawn ("No person")
                 self.show_legend()
+
+    def set_compared(self, compared: bool) -> None:
+        """A's column titles say "A" while B's columns are shown (they said nothing, so a
+        class could not tell A's bodies from the photo's own)."""
+        with self._lock:
+            if self.compared != bool(compared):
+                self.compared = bool(compared)
+                if self.placement is not None:
+                    self.show_titles(self.titles_top)
 
     @contextlib.contextmanager
     def static_titles(self) -> Iterator[None]:
@@ -573,16 +584,25 @@ class ExplorerScene:
         )
 
 
-def column_titles(kind: str, static: bool = False) -> tuple[str, str]:
-    """The photo's and the uncertainty body's column titles for the colouring ``kind`` (a key
-    of ``COLOURINGS``). The same in the live app and in a saved page or PNG (``static``, kept
-    for callers): a title changed just for a screenshot was still re-drawing in the browser
-    when the PNG was taken, so PNGs kept the live hint; how to draw a box is said in the
-    *Photo* panel instead."""
-    photo = "Photo"
+def column_titles(kind: str, static: bool = False, compared: bool = False) -> tuple[str, str, str]:
+    """The photo's, the most likely body's and the uncertainty body's column titles for the
+    colouring ``kind`` (a key of ``COLOURINGS``); ``compared``: B's columns are shown beside
+    them, so the bodies' titles begin with "A".
+
+    The titles are short lines (at most "most likely body + samples" wide): the columns stand
+    closer than a one-line title is long when the row is narrowed for the person's reach or
+    for B's columns ("samplesUncertainty"). The same in the live app and in a saved page or
+    PNG (``static`` is kept for callers): a title changed just for a screenshot was still
+    re-drawing in the browser when the PNG was taken, so PNGs kept the live hint; how to draw
+    a box is said in the *Photo* panel instead.
+    """
+    del static
+    body, heat = "most likely body\n+ samples", "uncertainty\nover samples"
     if kind == "change":
-        return photo, "Change: uncertainty ÷ no occluders, 1× concentrations"
-    return photo, "Uncertainty over samples"
+        heat = "change: uncertainty\n÷ no occluders,\n1× concentrations"
+    if compared:
+        return "Photo", f"A: {body}", f"A: {heat}"
+    return "Photo", body[0].upper() + body[1:], heat[0].upper() + heat[1:]
 
 
 def _concentration_text(value: float) -> str:

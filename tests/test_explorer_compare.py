@@ -111,14 +111,21 @@ def test_change_colouring_titles_follow_it(app) -> None:
         for name, handle in app.server.scene._handle_from_node_name.items()
         if name.startswith("/titles/")
     }
-    assert labels["/titles/uncertainty"].startswith("Change: uncertainty ÷ no occluders")
+    # Beside B, A's titles say "A" (issue 58), all in short lines: none wider than the
+    # columns stand apart ("samplesUncertainty" ran together).
+    assert labels["/titles/uncertainty"].startswith("A: change: uncertainty\n÷ no occluders")
+    assert labels["/titles/samples"] == "A: most likely body\n+ samples"
     assert labels["/titles/compare_title_heat"] == "B (without the boxes):\nuncertainty ÷ A's"
+    body_b = labels["/titles/compare_title_body"]
+    assert body_b == "B (without the boxes):\nmost likely body\n+ samples"
+    assert max(len(line) for text in labels.values() for line in text.split("\n")) <= 22
     assert "coloured by B's spread ÷ A's" in app.page_caption().text()
     app.panels.samples.colouring.value = "Uncertainty, log scale (cm)"
     app.set_compare(None)
     assert app.wait_idle(60)
     titles = app.server.scene._handle_from_node_name
-    assert titles["/titles/uncertainty"].text == "Uncertainty over samples"
+    assert titles["/titles/uncertainty"].text == "Uncertainty\nover samples"
+    assert titles["/titles/samples"].text == "Most likely body\n+ samples"  # no B: no "A"
 
 
 def test_a_slider_move_redraws_only_what_b_changed(app) -> None:

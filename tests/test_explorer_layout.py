@@ -180,3 +180,28 @@ def test_nothing_drawn_over_the_photo_spills_past_its_edges(app) -> None:
             app.result.posterior.keypoints.numpy(), app.result.posterior.confidences.numpy()
         )
         app.landmark_marks.show(app.result.posterior)
+
+
+def test_a_saved_page_frames_everything_above_its_caption(app) -> None:
+    """Issue 58: an exported compare page was framed as the live app (room for a control panel
+    the page does not have, a 1.6 window): a 1024 x 768 window cut the photo off at the left,
+    and the caption box covered the key. The page's camera fits the whole row, key and colour
+    bars included, in a 5:4 window's upper part, above the caption's band."""
+    from hkpd.explorer.framing import PAGE_ASPECT, PAGE_CAPTION_ROOM, TITLE_ROOM_M, page_camera
+    from hkpd.explorer.scene import LEGEND_HEIGHT
+
+    placement, layout, reach = app.scene.placement, app.scene.layout, body_reach(app.result)
+    camera = SimpleNamespace(position=(1.0, 2.0, 3.0), look_at=(0.0, 0.0, 0.0))
+    with page_camera(camera, placement, compare=True, reach=reach, layout=layout):
+        (x, _, distance), look_at = camera.position, camera.look_at
+    assert camera.position == (1.0, 2.0, 3.0)  # restored after the page
+    key_x, key_y, key_w, key_h = key_rect(placement)
+    left = min(placement.centre[0] - placement.width_m / 2, key_x - key_w / 2)
+    right = layout.compare_heat_x + reach
+    bottom = min(key_y - key_h / 2, LEGEND_HEIGHT - 0.1)
+    top = max(placement.centre[1] + placement.height_m / 2, 1.0) + TITLE_ROOM_M
+    half_v = distance * math.tan(math.radians(CAMERA_FOV_DEG) / 2)
+    for aspect in (PAGE_ASPECT, 4 / 3, 16 / 10, 16 / 9):
+        assert x - half_v * aspect <= left and right <= x + half_v * aspect, aspect
+    caption_top = look_at[1] - half_v + 2 * half_v * PAGE_CAPTION_ROOM
+    assert bottom >= caption_top - 1e-9 and top <= look_at[1] + half_v + 1e-9

@@ -66,9 +66,9 @@ def test_an_exported_compare_page_in_change_colouring_says_nothing_of_the_live_a
     caption, strings = page_texts(page.read_text(encoding="utf-8"))
     seen = label_texts(strings)
     assert "Photo" in strings  # the static title, not "Photo · shift+drag to hide a part"
-    assert any(s.startswith("Change: uncertainty ÷") for s in seen), seen
-    assert "B (without the boxes):\nuncertainty ÷ A's" in seen  # two lines: see compare_scene
-    assert not any(s.startswith("Uncertainty over samples") for s in seen)
+    assert any(s.startswith("A: change: uncertainty\n÷") for s in seen), seen
+    assert "B (without the boxes):\nuncertainty ÷ A's" in seen  # short lines: see compare_scene
+    assert not any(s.startswith(("Uncertainty\nover samples", "A: uncertainty")) for s in seen)
     for text in [caption, *seen]:
         assert not LIVE_APP_WORDS.search(text), (LIVE_APP_WORDS.search(text), text)
     assert "coloured by B's spread ÷ A's" in caption and "Drag to orbit" in caption
@@ -81,7 +81,7 @@ def test_a_notebook_page_says_nothing_of_the_live_app() -> None:
                 num_displayed=2)  # fmt: skip
     caption, strings = page_texts(page.html)
     seen = label_texts(strings)
-    assert "Uncertainty over samples" in seen and "Photo" in strings
+    assert "Uncertainty\nover samples" in seen and "Photo" in strings
     for text in [caption, *seen]:
         assert not LIVE_APP_WORDS.search(text), (LIVE_APP_WORDS.search(text), text)
     assert len(repr(page)) <= 200
