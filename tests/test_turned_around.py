@@ -52,3 +52,12 @@ def test_turning_an_evidence_posterior_refits_and_turns_back(predictor) -> None:
     assert turned.turned_around() is posterior
     with pytest.raises(ValueError, match="cannot be turned around"):
         predictor.predict(PHOTO, evidence=False).turned_around()
+
+
+def test_turning_keeps_the_photos_sex_reading(predictor) -> None:
+    posterior = predictor.predict(PHOTO)  # the face tells the sex
+    turned = posterior.turned_around()
+    assert turned.sex_probabilities == pytest.approx(posterior.sex_probabilities)
+    assert turned.sex_evidence == posterior.sex_evidence
+    assert turned.face == posterior.face
+    assert turned.drawn_sex in ("male", "neutral")  # neutral only if the turn is in doubt

@@ -25,7 +25,7 @@ from hkpd.conditioning import KeypointEvidence, condition_on_keypoints
 from hkpd.distributions import BodyDistribution
 from hkpd.mirror_symmetry import BODY_MIRROR_PERMUTATION, reflect_rotations
 from hkpd.prediction.posterior import BodyPosterior
-from hkpd.prediction.sex_fits import fit_each_sex
+from hkpd.prediction.sex_fits import fit_each_sex, with_drawn_body
 
 if TYPE_CHECKING:
     from hkpd.prediction.predictor import Predictor
@@ -59,8 +59,9 @@ def turn_around(predictor: Predictor, posterior: BodyPosterior) -> BodyPosterior
     """The turned-around evidence posterior of ``posterior`` (module docstring): the keypoints
     with left and right swapped, fitted from the turned network reading, under each sex's
     prior and the stated values as the original was (the person mask and the hand and foot
-    landmarks are not refitted). Its :meth:`~BodyPosterior.turned_around` gives ``posterior``
-    back.
+    landmarks are not refitted). How probable each sex is belongs to the photo (its face and
+    keypoints as first read), so turning keeps it; only the shapes are refitted. Its
+    :meth:`~BodyPosterior.turned_around` gives ``posterior`` back.
 
     Raises:
         ValueError: ``posterior`` is not an evidence posterior of a photo.
@@ -83,14 +84,15 @@ def turn_around(predictor: Predictor, posterior: BodyPosterior) -> BodyPosterior
     body64 = predictor.float64_body_model()
     sexes = None
     if posterior.sexes is not None and posterior.stated is not None:
-        fits = fit_each_sex(body64, start, evidence, config, (), posterior.stated)
+        fits = fit_each_sex(body64, start, evidence, config, (), posterior.stated,
+                            face=posterior.face, decided=posterior.sexes)  # fmt: skip
         fit, sexes = fits.winner, fits.shapes
     else:
         fit = condition_on_keypoints(body64, start, evidence, config)
     if fit.conditioned is None:
         raise ValueError(f"the turned-around fit failed: {fit.reason}")
     turned_prior = replace(reading, distribution=turned_distribution(reading.distribution))
-    return replace(
+    turned = replace(
         posterior,
         distribution=fit.conditioned.map(lambda t: t.float().to(posterior.F.device)),
         prior=turned_prior,
@@ -99,3 +101,4 @@ def turn_around(predictor: Predictor, posterior: BodyPosterior) -> BodyPosterior
         turned=not posterior.turned,
         turner=lambda _: posterior,
     )
+    return with_drawn_body(turned)
