@@ -2,9 +2,13 @@
 
 ``--sex {female,male}`` and one flag per measurement, each ``VALUE [STD]`` (metres, or
 kilograms for ``--mass``; without a std the default of
-:data:`hkpd.stated_body.DEFAULT_STATED_STD`, e.g. 1 cm and 1 kg)::
+:data:`hkpd.stated_body.DEFAULT_STATED_STD`, e.g. 1 cm and 1 kg). A length may carry its unit,
+and a bare length too large for metres is read as centimetres, with a note on stderr
+(:func:`hkpd.stated_body.read_stated_text`: the explorer's Body fields read the same text)::
 
     --height 1.82            # 1.82 m, std 0.01 m
+    --height 182             # 182 cm (note: 182 read as centimetres: 1.82 m)
+    --height 182cm 2cm       # 1.82 m, std 0.02 m
     --mass 80 2              # 80 kg, std 2 kg
     --chest M [STD] --waist M [STD] --hip M [STD] --shoulder-width M [STD]
 
@@ -17,9 +21,16 @@ ValueError whose message names the flag. ``hkpd-predict`` uses them; the values 
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Sequence
 
-from hkpd.stated_body import DEFAULT_STATED_STD, SEX_NAMES, StatedBody, StatedValue
+from hkpd.stated_body import (
+    DEFAULT_STATED_STD,
+    SEX_NAMES,
+    StatedBody,
+    StatedValue,
+    read_stated_text,
+)
 
 MEASUREMENT_FLAGS: dict[str, str] = {
     "height_m": "--height",
@@ -51,7 +62,9 @@ def _dest(name: str) -> str:
 def add_body_arguments(parser: argparse.ArgumentParser) -> None:
     """Add ``--sex`` and the measurement flags (parsed as strings; see :func:`stated_body`)."""
     group = parser.add_argument_group(
-        "what you know of the person (conditions the body shape; docs/prediction.md)"
+        "what you know of the person (conditions the body shape; docs/prediction.md); lengths "
+        "in metres, or with their unit (182cm); a bare length too large for metres (182) is "
+        "read as centimetres"
     )
     group.add_argument(
         "--sex",
@@ -61,7 +74,7 @@ def add_body_arguments(parser: argparse.ArgumentParser) -> None:
         "each sex is",
     )
     for name, flag in MEASUREMENT_FLAGS.items():
-        unit = "KG" if name == "mass_kg" else "M"
+        unit = "KG" if name == "mass_kg" else "M|CM"
         group.add_argument(
             flag,
             dest=_dest(name),
@@ -90,26 +103,24 @@ def stated_body(args: argparse.Namespace) -> StatedBody:
 
 
 def _stated_value(name: str, flag: str, values: Sequence[str]) -> StatedValue:
-    """One flag's ``VALUE [STD]`` as a float or a ``(value, std)`` pair, checked."""
+    """One flag's ``VALUE [STD]`` as a float or a ``(value, std)`` pair, checked (a length
+    read as centimetres prints a note on stderr)."""
     given = f"{flag} {' '.join(values)}"
-    unit = "kilograms" if name == "mass_kg" else "metres"
+    unit = "kilograms" if name == "mass_kg" else "metres (or cm)"
     if not 1 <= len(values) <= 2:
         raise ValueError(
             f"{given}: give a value in {unit} and optionally its std, e.g. {flag} "
             f"{_example(name)} (put the photos before the flags)"
         )
     try:
-        numbers = [float(value) for value in values]
-    except ValueError:
-        raise ValueError(
-            f"{given}: not a number; give a value in {unit} and optionally its std, e.g. "
-            f"{flag} {_example(name)} (put the photos before the flags)"
-        ) from None
-    stated: StatedValue = numbers[0] if len(numbers) == 1 else (numbers[0], numbers[1])
-    try:
-        StatedBody.of(None, {name: stated})
+        stated, note = read_stated_text(name, " ".join(values), "kg" if name == "mass_kg" else "m")
     except ValueError as error:
-        raise ValueError(f"{given}: {error}") from None
+        raise ValueError(
+            f"{given}: {error}; give a value in {unit} and optionally its std, e.g. {flag} "
+            f"{_example(name)} (put the photos before the flags)"
+        ) from None
+    if note:
+        print(f"note: {flag} {note}", file=sys.stderr)
     return stated
 
 

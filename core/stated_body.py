@@ -11,6 +11,7 @@ kilograms; each comes with a standard deviation, by default :data:`DEFAULT_STATE
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from numbers import Real
@@ -131,3 +132,69 @@ def _number(what: str, value: object) -> float:
     if not math.isfinite(number):
         raise ValueError(f"{what} must be finite, got {value!r}")
     return number
+
+
+UNIT_SIZES: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "kg": 1.0}
+"""Units a stated measurement may be typed in, and their size in metres (kilograms for kg)."""
+
+_NUMBER = r"[-+]?(?:\d+(?:[.,]\d*)?|[.,]\d+)"
+_UNIT = r"(?:\s*(mm|cm|m|kg)\b)?"
+_STATED_TEXT = re.compile(
+    rf"^\s*({_NUMBER}){_UNIT}\s*(?:(?:±|\+/-|\+-|\s)\s*({_NUMBER}){_UNIT})?\s*$", re.IGNORECASE
+)
+
+
+def read_stated_text(name: str, text: str, default_unit: str) -> tuple[StatedValue, str]:
+    """A measurement typed as text: ``"VALUE [± STD]"``, each number optionally with its unit
+    (``"185 cm"``, ``"1.85m ± 2cm"``, ``"80 kg"``), in metres or kilograms.
+
+    A bare number is in ``default_unit`` (``"m"`` on the command line, ``"cm"`` in the
+    explorer's Body fields), except a length that is not plausible in it but is in the other
+    of metres and centimetres (no length is plausible in both: :data:`PLAUSIBLE_RANGE` in
+    metres stays below 2.6, in centimetres above 10): ``--height 185`` is 185 cm and the
+    field's ``1.85`` is 1.85 m. The note then says how it was read ("" otherwise).
+
+    Raises:
+        ValueError: not ``VALUE [STD]``, a unit that does not fit the measurement, or a value
+            :meth:`StatedBody.of` refuses; the message says what to type.
+    """
+    mass = name == "mass_kg"
+    match = _STATED_TEXT.match(text)
+    if match is None:
+        raise ValueError(f"not a number: {text!r} (a value, an optional ± std, units m, cm, kg)")
+    value_text, value_unit, std_text, std_unit = match.groups()
+    units = {(u or "").lower() for u in (value_unit, std_unit)} - {""}
+    if units and (units != {"kg"} if mass else "kg" in units):
+        raise ValueError(f"{text!r}: give {'mass in kg' if mass else 'a length in m or cm'}")
+    value = float(value_text.replace(",", "."))
+    std = None if std_text is None else float(std_text.replace(",", "."))
+    unit, note = (value_unit or default_unit).lower(), ""
+    if not mass and value_unit is None:
+        unit = _plausible_unit(name, value, unit)
+        if unit != default_unit:
+            words = "centimetres" if unit == "cm" else "metres"
+            note = f"{value:g} read as {words}: {value * UNIT_SIZES[unit]:g} m"
+    metres = value * UNIT_SIZES["kg" if mass else unit]
+    if std is not None:
+        std_metres = std * UNIT_SIZES["kg" if mass else (std_unit or unit).lower()]
+        stated: StatedValue = (metres, std_metres)
+    else:
+        stated = metres
+    try:
+        StatedBody.of(None, {name: stated})
+    except ValueError as error:
+        example = "80 kg" if mass else "1.85 m or 185 cm" if name == "height_m" else "90 cm"
+        raise ValueError(f"{text!r} is not plausible ({error}); type e.g. {example}") from None
+    return stated, note
+
+
+def _plausible_unit(name: str, value: float, unit: str) -> str:
+    """``unit``, or the other of m and cm when only that one makes ``value`` plausible."""
+    low, high = PLAUSIBLE_RANGE[name]
+    other = "cm" if unit == "m" else "m"
+    if (
+        not low <= value * UNIT_SIZES.get(unit, 1.0) <= high
+        and low <= value * UNIT_SIZES[other] <= high
+    ):
+        return other
+    return unit

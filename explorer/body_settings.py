@@ -15,7 +15,13 @@ import math
 import re
 from dataclasses import dataclass
 
-from hkpd.stated_body import DEFAULT_STATED_STD, MEASUREMENT_NAMES, StatedBody, StatedValue
+from hkpd.stated_body import (
+    DEFAULT_STATED_STD,
+    MEASUREMENT_NAMES,
+    StatedBody,
+    StatedValue,
+    read_stated_text,
+)
 
 FIELD_UNITS: dict[str, tuple[str, float]] = {
     "height_m": ("cm", 0.01),
@@ -134,8 +140,6 @@ def entry_text(name: str, value: float, std: float) -> str:
     return f"{shown} ± {in_field_units(name, std):g}"
 
 
-_NUMBER = r"[-+]?(?:\d+(?:[.,]\d*)?|[.,]\d+)"
-_ENTRY = re.compile(rf"^\s*({_NUMBER})\s*(?:(?:±|\+/-|\+-|\s)\s*({_NUMBER}))?\s*$")
 
 
 def parse_field(name: str, text: str) -> StatedValue | None:
@@ -144,7 +148,9 @@ def parse_field(name: str, text: str) -> StatedValue | None:
     Args:
         name: one of :data:`hkpd.body.measurements.MEASUREMENT_NAMES`.
         text: ``""`` (not stated), ``"175"`` or ``"175 ± 2"`` (also ``"175 2"``, ``"175 +- 2"``)
-            in the field's unit (:data:`FIELD_UNITS`: centimetres, kilograms for mass).
+            in the field's unit (:data:`FIELD_UNITS`: centimetres, kilograms for mass), or
+            with a unit (``"1.75 m"``); a bare length plausible only in metres (``"1.75"``)
+            is read in metres (:func:`hkpd.stated_body.read_stated_text`).
 
     Returns:
         None for an empty field, the value, or ``(value, std)``.
@@ -156,24 +162,14 @@ def parse_field(name: str, text: str) -> StatedValue | None:
     text = text.strip()
     if not text:
         return None
-    unit, size = FIELD_UNITS[name]
+    unit = FIELD_UNITS[name][0]
     label = LABELS[name]
     example = EXAMPLES.get(name, "90 or 90 ± 2")
-    match = _ENTRY.match(text)
-    if match is None:
-        raise ValueError(f"{label} {text!r}: type a number in {unit}, e.g. {example}")
-    value = float(match.group(1).replace(",", ".")) * size
-    stated: StatedValue = value
-    if match.group(2) is not None:
-        stated = (value, float(match.group(2).replace(",", ".")) * size)
-    try:
-        StatedBody.of(None, {name: stated})
+    try:  # the command line's reading, centimetres by default (1.85 is read as metres)
+        return read_stated_text(name, text, unit)[0]
     except ValueError as error:
-        why = re.sub(r"; give it in \w+$", "", str(error))
-        raise ValueError(
-            f"{label} {text!r} {unit}: not plausible ({why}); type it in {unit}, e.g. {example}"
-        ) from None
-    return stated
+        why = re.sub(r"; type e\.g\. .*$", "", str(error))
+        raise ValueError(f"{label}: {why}; type it in {unit}, e.g. {example}") from None
 
 
 def parse_fields(sex: str | None, texts: dict[str, str]) -> BodyStatement:

@@ -101,9 +101,14 @@ def test_fields_read_centimetres_and_kilograms_with_an_optional_std() -> None:
     assert parse_field("height_m", " 175 ") == pytest.approx(1.75)
     assert parse_field("height_m", "175 ± 2") == pytest.approx((1.75, 0.02))
     assert parse_field("mass_kg", "70,5 +- 3") == pytest.approx((70.5, 3.0))
-    with pytest.raises(ValueError, match=r"Height '1.75' cm: not plausible.*e.g. 175"):
-        parse_field("height_m", "1.75")  # metres typed into the centimetre field
-    with pytest.raises(ValueError, match="Mass 'heavy': type a number in kg"):
+    # Metres typed into the centimetre field are read as metres (as on the command line);
+    # units may be typed; a length plausible in neither is refused, saying what to type.
+    assert parse_field("height_m", "1.75") == pytest.approx(1.75)
+    assert parse_field("height_m", "1.75 m ± 2 cm") == pytest.approx((1.75, 0.02))
+    assert parse_field("waist_m", "80 cm") == pytest.approx(0.8)
+    with pytest.raises(ValueError, match=r"Height: '5' is not plausible.*type it in cm, e.g. 175"):
+        parse_field("height_m", "5")
+    with pytest.raises(ValueError, match=r"Mass: not a number: 'heavy'.*type it in kg"):
         parse_field("mass_kg", "heavy")
     with pytest.raises(ValueError, match=r"(?s)Height.*\n.*Mass"):  # every bad field, each named
         parse_fields(None, {"height_m": "abc", "mass_kg": "0"})
@@ -209,10 +214,10 @@ def test_the_section_states_the_sex_and_measurements_and_refuses_bad_input() -> 
         expected = BodyStatement.of("male", {"height_m": 1.85, "mass_kg": (90.0, 3.0)})
         assert actions.state.stated == expected and actions.changed[-1] is True
         # Bad input: a message, nothing changed, the typed text kept to be fixed.
-        section.fields["height_m"].value = "1.85"
+        section.fields["height_m"].value = "18.5"
         click(section.apply)
         assert "Not stated" in section.message.content and "Height" in section.message.content
-        assert actions.state.stated == expected and section.fields["height_m"].value == "1.85"
+        assert actions.state.stated == expected and section.fields["height_m"].value == "18.5"
         click(section.clear)
         assert actions.state.stated == NOTHING_STATED
         assert section.fields["height_m"].value == "" and section.chosen_sex is None
@@ -299,7 +304,7 @@ def test_the_body_flags_parse_as_hkpd_predicts() -> None:
 @pytest.mark.parametrize(
     ("flags", "message"),
     [
-        (["--height", "185"], r"--height 185: height_m = 185 m is outside 0.5-2.6 m"),
+        (["--height", "5"], r"--height 5: '5' is not plausible \(height_m = 5 m is outside"),
         (["--mass", "heavy"], r"--mass heavy: not a number"),
         (["--height", "1.8", "--no-evidence"], r"needs the keypoint evidence: drop --no-evidence"),
     ],

@@ -89,11 +89,12 @@ def test_the_flags_are_parsed_into_what_is_stated():
 @pytest.mark.parametrize(
     "arguments, message",
     [
-        (["--height", "182"], "--height 182: height_m = 182 m is outside"),
+        (["--height", "5"], "--height 5: '5' is not plausible (height_m = 5 m is outside"),
         (["--mass", "eighty"], "--mass eighty: not a number"),
         (["--waist", "0.8", "0.02", "3"], "--waist 0.8 0.02 3: give a value in metres"),
         (["--height", "1.8", "-0.01"], "height_m's std must be > 0"),
-        (["--hip", "nan"], "must be finite"),
+        (["--hip", "nan"], "--hip nan: not a number"),
+        (["--mass", "80cm"], "give mass in kg"),
         (["--sex", "male", "--mass", "70", "--no-evidence"], "--sex --mass condition the body"),
     ],
 )
@@ -303,3 +304,30 @@ def test_the_stated_body_flags_are_listed_in_the_help(capsys):
     shown = capsys.readouterr().out
     for flag in ("--sex", "--height", "--mass", "--chest", "--waist", "--hip", "--shoulder-width"):
         assert flag in shown
+
+
+def test_a_height_in_centimetres_is_read_as_such_with_a_note(capsys):
+    """Issue 58: the explorer's Body fields take cm, the flags metres; both read both: a bare
+    length too large for metres is centimetres (a note says so), and units may be typed."""
+    from hkpd.body_flags import stated_body
+
+    parser = cli.build_parser()
+    for flags, expected in (
+        (["--height", "182"], (1.82, 0.01)),
+        (["--height", "182cm", "2cm"], (1.82, 0.02)),
+        (["--height", "1.82", "m"], (1.82, 0.01)),  # "1.82 m": a unit, not a std
+        (["--height", "1.82", "x"], None),
+        (["--waist", "80", "2"], (0.8, 0.02)),
+        (["--height", "1.82"], (1.82, 0.01)),
+    ):
+        args = parser.parse_args(["a.jpg", "--out", "r", *flags])
+        if expected is None:  # neither a std nor a unit
+            with pytest.raises(ValueError, match="not a number"):
+                stated_body(args)
+            continue
+        name = "waist_m" if "--waist" in flags else "height_m"
+        assert stated_body(args).measurements[name] == pytest.approx(expected), flags
+    notes = capsys.readouterr().err
+    assert "note: --height 182 read as centimetres: 1.82 m" in notes
+    assert "note: --waist 80 read as centimetres: 0.8 m" in notes
+    assert "1.82 read as" not in notes  # metres and typed units need no note

@@ -161,7 +161,7 @@ def _field(gui: viser.GuiApi, name: str) -> viser.GuiTextHandle:
         f"{LABELS[name]} ({unit})",
         "",
         hint=f"Empty: from the photo. A number in {unit}, optionally ± its std "
-        "(e.g. 175 or 175 ± 2); then Use these values",
+        "(e.g. 175 or 175 ± 2; metres read as metres: 1.75 or 1.75 m); then Use these values",
     )
 
 
