@@ -34,14 +34,61 @@ from hkpd.evaluation.quality_data import coco_readings, synthetic_readings
 from hkpd.evaluation.quality_metrics import OFF_FRACTION, auroc, quality_summary, quality_table
 from hkpd.prediction import Predictor
 from hkpd.prediction.quality import (
+    READERS_DISPUTED_SHARE,
+    READERS_TORSO_OFFSET,
     SCORE_SIGNALS,
     SIGNAL_DIRECTIONS,
     SIGNAL_NAMES,
+    SWAP_GAIN,
+    WARNING_FLAGS,
     quality_score,
 )
 
 FIT_SOURCES = ("train2017/annotated", "train2017/detector", "synthetic")
 PENALTY = 1.0
+READER_FLAG_CANDIDATES = {
+    "readers_disputed_share": (0.2, 0.25, 0.3, 0.35, 0.4, 0.5),
+    "readers_torso_offset": (0.1, 0.15, 0.2, 0.25, 0.3, 0.4),
+    "readers_swap_gain": (0.0, 0.02, 0.05, 0.1, 0.15),
+}
+"""Thresholds tried for the reader flags (step 3 of ``fit``): ``readers_disagree`` is raised by
+the disputed share or the torso offset, ``left_right_unsure`` by the swap gain."""
+
+
+def reader_flags(signals: np.ndarray, names: list[str]) -> np.ndarray:
+    """``(N, 2)`` bool: ``readers_disagree`` and ``left_right_unsure`` of ``(N, S)`` signals at
+    the shipped thresholds (NaN signals raise nothing)."""
+    column = {name: signals[:, names.index(name)] for name in READER_FLAG_CANDIDATES}
+    with np.errstate(invalid="ignore"):
+        disagree = (column["readers_disputed_share"] > READERS_DISPUTED_SHARE) | (
+            column["readers_torso_offset"] > READERS_TORSO_OFFSET
+        )
+        return np.stack([disagree, column["readers_swap_gain"] > SWAP_GAIN], axis=1)
+
+
+def not_warned(score: np.ndarray, flags: np.ndarray, signals: np.ndarray, names) -> np.ndarray:
+    """``(N,)`` bool: readings ``posterior.quality.low`` would not warn about: score >= 0.5, no
+    other warning flag of the cache and no reader flag at the shipped thresholds (the cache's
+    reader flags were raised at the thresholds of its day)."""
+    others = WARNING_FLAGS - {"readers_disagree", "left_right_unsure"}  # recomputed below
+    cached = np.array([not others.isdisjoint(str(f).split("|")) for f in flags])
+    return (score >= 0.5) & ~cached & ~reader_flags(signals, names).any(1)
+
+
+def reader_flag_table(signals, error, rows, names) -> None:
+    """For each reader signal and threshold: readings over it and the share of them off, on
+    the fitting readings (``rows``): a flag warns when more than a third of its readings are
+    off (twice the fitting data's off share)."""
+    off = error[rows] > OFF_FRACTION
+    print(f"\nReader flag thresholds (fitting readings: {rows.sum()}, {off.mean():.1%} off):")
+    for name, candidates in READER_FLAG_CANDIDATES.items():
+        values = signals[rows, names.index(name)]
+        cells = []
+        for threshold in candidates:
+            over = np.nan_to_num(values, nan=-np.inf) > threshold
+            share = off[over].mean() if over.any() else float("nan")
+            cells.append(f"> {threshold}: {over.sum()} ({share:.0%} off)")
+        print(f"- {name}: " + ", ".join(cells))
 
 
 def collect(coco: Path, cache: Path, synthetic: int, held_out: int) -> None:
@@ -128,9 +175,11 @@ def fit(cache: Path) -> None:
     logits = weights[0] + standard @ weights[1:]
     fitted = 1 / (1 + np.exp(-logits))
     shipped = quality_score(every[:, [names.index(name) for name in SCORE_SIGNALS]])
-    print("\n| source | readings | off | AUROC (fitted) | off at >= 0.5 | AUROC (shipped) | "
-          "off at >= 0.5 (shipped) |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|")
+    reader_flag_table(every, error, chosen, names)
+    print("\n| source | readings | off | AUROC (fitted) | off at >= 0.5 | off not warned | "
+          "warned | AUROC (shipped) | off at >= 0.5 (shipped) |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
+    quiet = not_warned(fitted, data["flags"], every, names)
     groups = {name: source == name for name in sorted(set(source.tolist()))}
     groups["val2017 (both boxes)"] = np.char.startswith(source.astype(str), "val2017")
     for name, rows in groups.items():
@@ -138,9 +187,10 @@ def fit(cache: Path) -> None:
             quality_summary(fitted[rows], error[rows]),
             quality_summary(shipped[rows], error[rows]),
         )
+        off_quiet = (error[rows & quiet] > OFF_FRACTION).mean() if (rows & quiet).any() else 0.0
         print(f"| {name} | {int(now['readings'])} | {int(now['off'])} | {now['auroc']:.3f} | "
-              f"{now['off_share_at_0.5']:.3f} | {before['auroc']:.3f} | "
-              f"{before['off_share_at_0.5']:.3f} |")  # fmt: skip
+              f"{now['off_share_at_0.5']:.3f} | {off_quiet:.3f} | {1 - quiet[rows].mean():.2f} | "
+              f"{before['auroc']:.3f} | {before['off_share_at_0.5']:.3f} |")  # fmt: skip
     for name, rows in groups.items():
         print("\n" + quality_table(f"{name} (shipped weights)", shipped[rows], error[rows]))
     print("\nSingle signals' AUROC (higher signal = better):")
