@@ -36,6 +36,10 @@ DEFAULT_MAX_CM = UNCERTAINTY_MAX_M * 100.0
 LOG_BOTTOM_CM = 1.0
 LOG_TOP_CM = 32.0
 """Ends of the log scale, centimetres (values outside take the end colours)."""
+LOG_LABEL = f"log {LOG_BOTTOM_CM:g}-{LOG_TOP_CM:g} cm"
+"""The log scale in words, as its colour bar says (``hkpd-predict``'s overview says
+:attr:`~hkpd.prediction.exports.uncertainty_colours.UncertaintyColourScale.label`,
+"linear 0-10 cm", the explorer's *linear* colouring at its default top)."""
 
 CHANGE_MAX_RATIO = 3.0
 """The change colouring's reddest ratio (and 1/this the bluest)."""
@@ -129,7 +133,8 @@ def legend_image(max_cm: float = DEFAULT_MAX_CM, width: int = 320, height: int =
         ``(height, width, 3)`` uint8 RGB on a white background.
     """
     ticks = [(value / max_cm, f"{value:g}") for value in _tick_values(max_cm)]
-    title = f"Uncertainty over samples, cm (linear, saturates above {max_cm:g})"
+    scale = UncertaintyColourScale(maximum_m=max_cm / 100.0)
+    title = f"Uncertainty over samples, {scale.label} (saturates above)"
     return _bar_image(ramp_colours, ticks, title, "cm", width, height)
 
 
@@ -137,7 +142,7 @@ def log_legend_image(width: int = 320, height: int = 64) -> np.ndarray:
     """The log colour bar :data:`LOG_BOTTOM_CM` .. :data:`LOG_TOP_CM` (ticks at powers of 2)."""
     values = 2.0 ** np.arange(np.log2(LOG_BOTTOM_CM), np.log2(LOG_TOP_CM) + 1e-9)
     ticks = [(float(_log_fraction(v)), f"{v:g}") for v in values]
-    return _bar_image(ramp_colours, ticks, "Uncertainty over samples, cm (log scale)", "cm",
+    return _bar_image(ramp_colours, ticks, f"Uncertainty over samples, {LOG_LABEL}", "cm",
                       width, height)  # fmt: skip
 
 

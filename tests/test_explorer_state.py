@@ -366,3 +366,30 @@ def test_uploads_decode_one_at_a_time(monkeypatch):
     for thread in threads:
         thread.join()
     assert most[0] == 1
+
+
+def test_every_colour_bar_names_its_scale_in_the_same_words(monkeypatch) -> None:
+    """Issue 58: the explorer's default bar is log 1-32 cm, hkpd-predict's overview linear
+    0-10 cm; each bar now says which in the same words, so a class compares colours only
+    between pictures whose bars match (the explorer's *linear* colouring is the overview's)."""
+    from hkpd.explorer import colour_map
+    from hkpd.prediction.exports import overview
+
+    assert UncertaintyColourScale().label == "linear 0-10 cm"
+    assert colour_map.LOG_LABEL == "log 1-32 cm"
+    titles: list[str] = []
+    monkeypatch.setattr(colour_map, "_bar_image", lambda _r, _t, title, *_: titles.append(title))
+    colour_map.legend_image()
+    colour_map.log_legend_image()
+    assert titles == ["Uncertainty over samples, linear 0-10 cm (saturates above)",
+                      "Uncertainty over samples, log 1-32 cm"]  # fmt: skip
+    drawn: list[str] = []
+    real_text = overview.ImageDraw.ImageDraw.text
+
+    def text(self, xy, words, *args, **kwargs):
+        drawn.append(words)
+        return real_text(self, xy, words, *args, **kwargs)
+
+    monkeypatch.setattr(overview.ImageDraw.ImageDraw, "text", text)
+    overview.draw_colour_bar(UncertaintyColourScale(), 400)
+    assert "linear 0-10 cm" in drawn

@@ -324,7 +324,9 @@ def draw_colour_bar(scale: UncertaintyColourScale, height: int, width: int = 110
         draw.text((right + 8, y), label, fill=TEXT, font=font, anchor="lm")
     size = getattr(font, "size", 11)
     draw.text((left - 8, top - size - 16), "uncertainty", fill=TEXT, font=font, anchor="ls")
-    draw.text((left - 8, top - 10), "(cm)", fill=TEXT, font=font, anchor="ls")
+    # The scale in words (the explorer's default bar says "log 1-32 cm"): colours compare only
+    # between bars that say the same.
+    draw.text((left - 8, top - 10), scale.label, fill=TEXT, font=font, anchor="ls")
     return np.asarray(image)
 
 

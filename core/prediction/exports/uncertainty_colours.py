@@ -73,6 +73,13 @@ class UncertaintyColourScale:
         count = int(np.floor((high - low) / step_cm + 1e-9))
         return [round(low + k * step_cm, 6) for k in range(count + 1)]
 
+    @property
+    def label(self) -> str:
+        """The scale in words, as every colour bar of hkpd names it: ``"linear 0-10 cm"``
+        (the explorer's default is ``"log 1-32 cm"``: a class compares colours only between
+        pictures whose bars say the same)."""
+        return f"linear {self.minimum_m * 100:g}-{self.maximum_m * 100:g} cm"
+
     def describe(self) -> dict[str, object]:
         """The scale as plain data (for the JSON summary)."""
         return {
