@@ -67,6 +67,7 @@ from hkpd.prediction.photo_reading import PhotoReading, PhotoReadingCache, photo
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
 from hkpd.prediction.readings.upright_view import UprightView
+from hkpd.prediction.second_evidence import combined_keypoint_evidence
 from hkpd.prediction.sex_fits import fit_each_sex, with_drawn_body, with_sex_shape
 from hkpd.prediction.sex_latent import FaceWord, SexShapes
 from hkpd.prediction.turning import turn_around
@@ -389,9 +390,10 @@ class Predictor:
     ) -> tuple[KeypointFit, SexShapes | None]:  # fmt: skip
         """The fit (:mod:`hkpd.prediction.sex_fits` when the body model has sex priors, with
         the photo's face and ``decided`` sexes) and its sexes (None without sex priors)."""
+        keypoints_crop, observed = combined_keypoint_evidence(prepared)
         keypoint_evidence = KeypointEvidence(
-            torch.as_tensor(prepared.keypoints_crop, dtype=torch.float64),
-            torch.as_tensor(prepared.evidence),
+            torch.as_tensor(keypoints_crop, dtype=torch.float64),
+            torch.as_tensor(observed),
             self.crop_size,
         )
         mask_terms = self._mask_terms(prepared)

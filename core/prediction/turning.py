@@ -25,6 +25,7 @@ from hkpd.conditioning import KeypointEvidence, condition_on_keypoints
 from hkpd.distributions import BodyDistribution
 from hkpd.mirror_symmetry import BODY_MIRROR_PERMUTATION, reflect_rotations
 from hkpd.prediction.posterior import BodyPosterior
+from hkpd.prediction.second_evidence import combined_keypoint_evidence
 from hkpd.prediction.sex_fits import fit_each_sex, with_drawn_body
 
 if TYPE_CHECKING:
@@ -72,10 +73,11 @@ def turn_around(predictor: Predictor, posterior: BodyPosterior) -> BodyPosterior
             "only an evidence posterior of a photo can be turned around (it refits the "
             "photo's keypoints); predict with evidence=True"
         )
+    keypoints_crop, observed = combined_keypoint_evidence(prepared)
     evidence = swapped_evidence(
         KeypointEvidence(
-            torch.as_tensor(prepared.keypoints_crop, dtype=torch.float64),
-            torch.as_tensor(prepared.evidence),
+            torch.as_tensor(keypoints_crop, dtype=torch.float64),
+            torch.as_tensor(observed),
             predictor.crop_size,
         )
     )

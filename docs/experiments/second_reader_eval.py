@@ -42,7 +42,9 @@ def error(points: np.ndarray, truth: np.ndarray, visible: np.ndarray, size: floa
     return float(np.linalg.norm(points - truth, axis=-1)[visible].mean() / size)
 
 
-def one_row(detector, reader, image, truth, visible, size, box) -> dict[str, float] | None:
+def one_row(
+    detector, reader, image, truth, visible, size, box, keep_points: bool = True
+) -> dict[str, float] | None:
     """Errors and signals of one person; None when BlazePose finds nobody."""
     loaded = load_image(image)
     try:
@@ -63,6 +65,11 @@ def one_row(detector, reader, image, truth, visible, size, box) -> dict[str, flo
         "seconds": on_person.seconds,
         **agreement.signals(),
     }
+    if keep_points:  # per keypoint, to choose how the two readers combine as evidence
+        row |= {"blazepose_points": detection.keypoints, "thunder_points": on_person.keypoints,
+                "confidences": detection.confidences, "thunder_scores": on_person.scores,
+                "truth": truth, "visible": visible, "size": size,
+                "person_size": person_size(detection.person_box)}  # fmt: skip
     return row
 
 
@@ -94,7 +101,7 @@ def synthetic_rows(detector, reader, count: int, seed: int) -> list[dict[str, fl
 
 def report(name: str, rows: list[dict[str, float]]) -> None:
     """Print one source's tables (module docstring)."""
-    table = {key: np.array([row[key] for row in rows]) for key in rows[0]}
+    table = {key: np.array([row[key] for row in rows]) for key in rows[0] if key != "truth"}
     off = table["blazepose"] > OFF_FRACTION
     print(f"\n### {name}: {len(rows)} readings, BlazePose off (> {OFF_FRACTION}) in {off.sum()}")
     print("\n| reader | median error | mean error | off share |\n|---|---|---|---|")
