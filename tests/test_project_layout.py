@@ -39,3 +39,10 @@ def test_the_readme_api_section_documents_what_researchers_asked_for() -> None:
     assert ".body_pose (N, 23, 3, 3)" in api and ".betas (N, 10)" in api
     for name in ("part_uncertainty", "quality.low", ".person_box (x0, y0, x1, y1)"):
         assert name in api, name
+
+
+def test_the_readme_quotes_no_sex_probability_of_the_shipped_photo() -> None:
+    """Issue 58: the README's "female 56 %" went stale as the sex evidence changed; the Body
+    section shows the current number, the README says where to look."""
+    readme = (ROOT / "README.md").read_text()
+    assert not re.search(r"\b(?:fe)?male \d+ ?%", readme)
