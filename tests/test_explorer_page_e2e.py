@@ -44,6 +44,16 @@ def test_exported_page_draws_the_scene_offline_from_a_file(tmp_path) -> None:
         caption = page.locator(f"#{CAPTION_ID}")
         assert caption.is_visible() and "1 occluder(s)" in caption.inner_text()
         shot = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+        # Nothing of the scene lies under the caption (issue 58: it covered the key): with the
+        # caption hidden, the band it stood in is empty background.
+        box = caption.bounding_box()
+        assert box is not None and box["height"] <= 0.33 * VIEWPORT["height"]
+        caption.evaluate("element => { element.style.display = 'none'; }")
+        page.wait_for_timeout(500)
+        bare = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+        band = bare[int(box["y"]) :]
+        drawn = (band < 235).any(axis=2)
+        assert drawn.mean() < 0.002, f"{drawn.mean():.4f} of the caption's band is drawn on"
         browser.close()
     assert outside == [], f"the page asked for {outside}"
     # The mode body is drawn (its clay colour, shaded, in the middle column above the floor:
