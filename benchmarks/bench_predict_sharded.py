@@ -12,7 +12,9 @@ One process runs with ``OMP_NUM_THREADS=1``; under torchrun each of P processes 
 machine's cores // P threads (one each on a 2-core machine). "steady" counts the photos
 finished after every process finished its first one (model loading and the first photo's
 warm-up left out), over the time from then to the last; "overall" is photos over the
-command's whole wall time (torchrun, imports and model loading included). "same as 1" compares
+command's whole wall time (torchrun, imports and model loading included); "CPU s/photo" is the
+CPU time of all its processes (user + system, start-up included) per photo, which other jobs
+on a shared machine disturb far less than the wall time. "same as 1" compares
 every array of every photo's ``prediction.npz`` with the first one-process run's, bit for bit.
 The load average is printed: the machine is shared.
 """
@@ -23,6 +25,7 @@ import argparse
 import itertools
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -66,16 +69,19 @@ def predict_command(processes: int, photos: Path, out: Path, extra: list[str]) -
 def run_once(processes: int, photos: Path, out: Path, extra: list[str]) -> dict:
     """Run and time one command; its index's finish times give the steady rate."""
     environment = dict(os.environ, OMP_NUM_THREADS="1")
+    cpu_before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
     done = subprocess.run(
         predict_command(processes, photos, out, extra),
         capture_output=True, text=True, env=environment, check=False,
     )  # fmt: skip
     wall = time.perf_counter() - started
+    cpu_after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = sum(getattr(cpu_after, f) - getattr(cpu_before, f) for f in ("ru_utime", "ru_stime"))
     if done.returncode != 0:
         raise RuntimeError(f"{processes} process(es) failed:\n{done.stderr[-3000:]}")
     records = [json.loads(line) for line in (out / "index.jsonl").read_text().splitlines()]
-    return {"wall": wall, "records": records}
+    return {"wall": wall, "cpu": cpu, "records": records}
 
 
 def steady_rate(records: list[dict]) -> float:
@@ -123,8 +129,9 @@ def main() -> None:
         names = [photo.stem for photo in photos]
         print(f"hkpd-predict, {len(photos)} photos, cores {os.cpu_count()}, "
               f"load before {load_average()}")  # fmt: skip
-        print("| processes | steady photos/min | overall photos/min | wall s | same as 1 | load |")
-        print("|---|---|---|---|---|---|")
+        print("| processes | steady photos/min | overall photos/min | wall s | CPU s/photo | "
+              "same as 1 | load |")  # fmt: skip
+        print("|---|---|---|---|---|---|---|")
         reference = None
         for run, processes in enumerate(arguments.processes):
             out = work / f"out_{run}_{processes}"
@@ -134,7 +141,8 @@ def main() -> None:
             same = "-" if reference is None else "{}/{}".format(*same_arrays(reference, out, names))
             overall = 60.0 * len(photos) / result["wall"]
             print(f"| {processes} | {steady_rate(result['records']):.1f} | {overall:.1f} | "
-                  f"{result['wall']:.1f} | {same} | {load_average()} |", flush=True)  # fmt: skip
+                  f"{result['wall']:.1f} | {result['cpu'] / len(photos):.2f} | {same} | "
+                  f"{load_average()} |", flush=True)  # fmt: skip
     finally:
         shutil.rmtree(work, ignore_errors=True)
 

@@ -296,3 +296,37 @@ def test_kill_9_at_random_moments_then_resume_does_every_photo_once(tmp_path, mo
         for name in expected:
             text = (out / name / "part_2.txt").read_text()
             assert text == f"{name}.jpg 2\n" * 200  # whole, and the photo's own
+
+
+def test_torchrun_with_two_processes_predicts_a_folder_into_one_index(tmp_path: Path) -> None:
+    """The real command line: ``torchrun --standalone --nproc_per_node 2 --no-python
+    hkpd-predict``, the shipped model and detector, a photo for each rank and a damaged file."""
+    import shutil
+    import subprocess
+    import sys
+
+    from hkpd.explorer.demo_photo import shipped_photo
+
+    program = Path(sys.executable).parent / "hkpd-predict"
+    if not program.is_file():
+        pytest.skip("hkpd-predict is not installed beside this Python")
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for name in ("a.jpg", "b.jpg"):
+        shutil.copyfile(shipped_photo(), photos / name)
+    (photos / "c_damaged.jpg").write_bytes(b"\xff\xd8\xff\xe0 cut short" * 30)
+    command = [sys.executable, "-m", "torch.distributed.run", "--standalone",
+               "--nproc_per_node=2", "--no-python", str(program), str(photos), "--out",
+               str(tmp_path / "out"), "--samples", "0", "--format", "npz",
+               "--uncertainty-samples", "4"]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "2 of 3 photos done, 1 failed" in done.stdout
+    assert done.stdout.count("photos done") == 1  # rank 0 says it once, for both
+    failed = [line for line in done.stderr.splitlines() if "FAILED" in line]
+    assert len(failed) == 1 and "c_damaged.jpg: the image data is corrupt" in failed[0]
+    index = read_records(tmp_path / "out" / INDEX_FILE)
+    assert [(r["photo"], r["rank"], r["status"] == "ok") for r in index] == [
+        ("a.jpg", 0, True), ("b.jpg", 1, True), ("c_damaged.jpg", 0, False)
+    ]  # fmt: skip
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a", "b", INDEX_FILE]
