@@ -1,14 +1,23 @@
 """NanoDet's person boxes (pre/post-processing, no model) and how ``detect_all`` merges them
-with BlazePose's detections so that nobody is listed twice (stand-in runners: fast)."""
+with BlazePose's detections so that nobody is listed twice (stand-in runners: fast); last, the
+real models on the shipped photo with a person pasted inside the man's box."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+from PIL import Image
 
 from hkpd.prediction.detection.blazepose import PersonCandidate, PoseLandmarks
-from hkpd.prediction.detection.keypoint_detector import KeypointDetector, reading_box
+from hkpd.prediction.detection.boxes import box_iou
+from hkpd.prediction.detection.keypoint_detector import (
+    KeypointDetector,
+    people_by_size,
+    reading_box,
+)
 from hkpd.prediction.detection.person_detector import (
     NANODET_BINS,
     NANODET_OUTPUTS,
@@ -34,7 +43,7 @@ def box(*corners: float) -> np.ndarray:
     return np.array(corners, np.float64)
 
 
-# --- the merge rules ---------------------------------------------------------------------------
+# --- the merge rules ----------------------------------------------------------------------------
 
 
 def test_each_box_is_owned_once_by_the_best_overlapping_detection() -> None:
@@ -45,6 +54,16 @@ def test_each_box_is_owned_once_by_the_best_overlapping_detection() -> None:
     assert unowned_boxes([], [person]) == [0]
     # A detection read in a box owns it, whatever the overlap.
     assert box_owners([upper_body, whole], [person], read_in=[0, None]) == [0, None]
+
+
+def test_a_box_that_leaves_out_outstretched_arms_is_still_the_persons() -> None:
+    # NanoDet boxed a small person's body without the arms; their landmark box is wider.
+    body, arms_out = box(674, 290, 747, 473), box(634, 311, 810, 471)
+    big_person, big_read = box(362, 153, 794, 576), box(373, 182, 798, 582)
+    assert box_owners([big_read, arms_out], [big_person, body]) == [0, 1]
+    assert kept_people([big_read, arms_out], [big_person, body]) == [0, 1]
+    # A box merely overlapping (not held by) the landmark box is not owned below OWNER_IOU.
+    assert box_owners([arms_out], [box(700, 200, 900, 400)]) == [None]
 
 
 def test_a_person_read_twice_inside_their_own_box_is_listed_once() -> None:
@@ -83,7 +102,7 @@ def test_a_read_fits_its_box_when_its_confident_keypoints_lie_inside() -> None:
     assert not read_fits_box(inside, np.zeros(17, bool), person)
 
 
-# --- NanoDet's pre- and post-processing ---------------------------------------------------------
+# --- NanoDet's pre- and post-processing ----------------------------------------------------------
 
 
 def nanodet_outputs(cell: tuple[int, int, int], distances: tuple[int, int, int, int], score: float):
@@ -149,7 +168,7 @@ def test_person_detector_maps_boxes_back_to_the_image_and_applies_its_threshold(
     )
 
 
-# --- detect_all with stand-in models --------------------------------------------------------------
+# --- detect_all with stand-in models ------------------------------------------------------------
 
 
 class FigureRunner:
@@ -261,3 +280,31 @@ def test_a_person_inside_another_persons_box_is_listed_once_and_read_in_their_bo
     # taken (before: the first found, here the child).
     adult = detector.detect(photo, bbox=(95, 35, 405, 485))
     assert adult.person_box[2] - adult.person_box[0] > 250
+
+
+# --- the real models ----------------------------------------------------------------------------
+
+SHIPPED_PHOTO = Path(__file__).parents[1] / "assets" / "photos" / "warrior_lunge.jpg"
+
+
+def person_inside_anothers_box() -> np.ndarray:
+    """The shipped photo (CC0) with a copy of its man, at 0.4 of his size, pasted between his
+    outstretched right arm and his back leg: a person inside another person's box."""
+    photo = Image.open(SHIPPED_PHOTO).convert("RGB")
+    small = photo.crop((350, 130, 860, 610)).resize((204, 192), Image.Resampling.BILINEAR)
+    photo.paste(small, (630, 290))
+    return np.asarray(photo)
+
+
+def test_the_real_models_list_a_person_inside_anothers_box_once_each() -> None:
+    pixels = person_inside_anothers_box()
+    with KeypointDetector(segmentation=False) as detector:
+        found = people_by_size(detector.detect_all(pixels))
+        assert len(found) == 2
+        big, small = found
+        assert inside_fraction(small.person_box, big.person_box) > 0.9  # inside his box
+        assert small.person_box[0] > 600 and small.person_box[2] - small.person_box[0] < 250
+        for person, other in ((big, small), (small, big)):
+            again = detector.detect(pixels, bbox=reading_box(person))  # as predict_all reads
+            assert box_iou(again.person_box, person.person_box) >= 0.8
+            assert box_iou(again.person_box, other.person_box) < 0.5

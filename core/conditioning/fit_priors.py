@@ -91,14 +91,6 @@ class FitPriors:
         camera_prior = (state.log_camera() - self.camera_start) / self.config.camera_sigma
         return torch.cat((pose_prior, shape_prior, global_prior, camera_prior), dim=-1)
 
-    def set_unread_joints(self, unread: torch.Tensor) -> None:
-        """Give the joints no evidence term reads (``unread (B, 23)`` bool,
-        :func:`hkpd.conditioning.evidence_reach.unread_joints`) the prior weight
-        ``config.unread_joint_weight`` instead of ``config.prior_weight``."""
-        ratio = self.config.unread_joint_weight / self.config.prior_weight
-        factor = torch.where(unread, ratio**0.5, 1.0).to(self.pose_prior_scale)
-        self.pose_prior_scale = self.pose_prior_scale * factor[..., None]
-
     def start(self) -> FitState:
         """Each start at its own prior's mode (its shape at the shape prior's mean)."""
         state = FitState.from_estimate(self.priors, self.prior_mode)

@@ -38,7 +38,7 @@ import torch
 
 from hkpd.body import BodyModel
 from hkpd.conditioning.config import EvidenceConfig
-from hkpd.conditioning.evidence_reach import unread_joints
+from hkpd.conditioning.evidence_reach import untempered_unread_joints
 from hkpd.conditioning.evidence_term import EvidenceTerm
 from hkpd.conditioning.facing import facing_starts
 from hkpd.conditioning.fit_objective import FitObjective
@@ -147,15 +147,15 @@ def fit_evidence(
         shape_prior: B full-covariance shape priors instead of the network's.
     """
     objective = FitObjective(body, starts, terms, config, shape_prior)
-    start = objective.start()
-    if config.unread_joint_weight != config.prior_weight:
-        objective.prior.set_unread_joints(unread_joints(objective, start))
-    return levenberg_marquardt(
+    result = levenberg_marquardt(
         objective,
-        start,
+        objective.start(),
         max_iterations=config.max_iterations,
         tolerance=config.tolerance,
     )
+    if config.unread_joint_weight == config.prior_weight:
+        return result
+    return untempered_unread_joints(objective, result)
 
 
 def laplace_posterior(

@@ -7,7 +7,9 @@ one person, so:
 
 - :func:`box_owners`: each box is *owned* by at most one detection and each detection owns at
   most one box: a detection read in a box owns it; the others are paired one to one, the
-  best-overlapping pairs first, at IoU >= :data:`OWNER_IOU`;
+  best-overlapping pairs first, at IoU >= :data:`OWNER_IOU`, or at IoU >= :data:`HELD_IOU`
+  when the box lies inside the detection's landmark box (a person whose outstretched arms
+  NanoDet's box leaves out);
 - :func:`unowned_boxes`: the boxes no detection owns are people BlazePose's detector missed,
   to be read in their box; :func:`read_fits_box`: whether such a read is the box's person
   (its confident keypoints inside the box, however far its guessed hidden limbs reach);
@@ -30,6 +32,7 @@ from hkpd.prediction.detection.boxes import box_iou
 
 __all__ = [
     "BOX_MARGIN",
+    "HELD_IOU",
     "INSIDE_OWNED",
     "KEYPOINTS_INSIDE",
     "OWNER_IOU",
@@ -44,6 +47,10 @@ OWNER_IOU = 0.4
 """A detection's landmark box overlapping a person box this much (IoU) can own it (a landmark
 box covers the 33 landmarks, NanoDet's box also hair, hands and feet: the same person's two
 boxes overlap by about 0.6-0.8)."""
+
+HELD_IOU = 0.2
+"""A detection whose landmark box holds a person box (:data:`INSIDE_OWNED` of the box's area
+inside it) can own that box from this IoU on."""
 
 INSIDE_OWNED = 0.8
 """A detection owning no box with this fraction of its landmark box's area inside a box owned
@@ -102,7 +109,8 @@ def box_owners(
             or None (default: no detection was read in a box).
 
     The other detections and boxes are paired one to one by decreasing IoU, each at most once,
-    pairs below :data:`OWNER_IOU` never.
+    pairs below :data:`OWNER_IOU` only when the detection's landmark box holds the person box
+    and their IoU reaches :data:`HELD_IOU`.
     """
     owners = [None] * len(landmark_boxes) if read_in is None else list(read_in)
     taken = {j for j in owners if j is not None}
@@ -115,10 +123,18 @@ def box_owners(
         key=lambda pair: (-pair[0], pair[1], pair[2]),
     )
     for iou, i, j in pairs:
-        if iou >= OWNER_IOU and owners[i] is None and j not in taken:
+        if iou < OWNER_IOU and (iou < HELD_IOU or not _holds(landmark_boxes[i], person_boxes[j])):
+            continue
+        if owners[i] is None and j not in taken:
             owners[i] = j
             taken.add(j)
     return owners
+
+
+def _holds(landmark_box: np.ndarray, person_box: np.ndarray) -> bool:
+    """Whether :data:`INSIDE_OWNED` of ``person_box``'s area lies inside ``landmark_box``."""
+    inner, outer = np.asarray(person_box, np.float64), np.asarray(landmark_box, np.float64)
+    return inside_fraction(inner, outer) >= INSIDE_OWNED
 
 
 def unowned_boxes(
