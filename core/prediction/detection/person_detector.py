@@ -17,8 +17,8 @@ The pre- and post-processing (measured on ``coco_mini`` train2017, 142 non-crowd
 - :func:`decoded_boxes`: per stride 8, 16, 32 (52², 26², 13² cells, row-major), the cell's
   centre ``((column + 0.5) s, (row + 0.5) s)`` and four distances left, top, right, bottom,
   each the expectation of a softmax over 11 bins (0..10 strides: Generalized Focal Loss's
-  distribution; the 44 values are side-major). The ``+ 0.5`` measured: mean IoU of matched
-  boxes 0.79 against 0.70 without.
+  distribution; the 44 values are side-major). The ``+ 0.5`` measured (stretched RGB 0..1
+  input): AP50 0.50 against 0.42 without, matched boxes' mean IoU 0.72 against 0.65.
 - :func:`suppressed`: greedy non-maximum suppression at IoU :data:`NMS_IOU`.
 """
 
