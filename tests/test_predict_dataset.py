@@ -152,6 +152,13 @@ def test_two_ranks_write_what_one_process_writes_bit_for_bit(
     for photo, record in by_photo.items():
         for key in ("folder", "status", "quality", "flags", "sex_probabilities", "files"):
             assert record[key] == reference[photo][key], (photo, key)
+    for key in _launch_environment(0, 2, "-"):  # alone again: --resume skips the complete ones
+        monkeypatch.delenv(key)
+    summaries = {p: p.stat().st_mtime_ns for p in (tmp_path / "ranks").glob("*/summary.json")}
+    code, out, _ = _quiet_main([photos, "--out", tmp_path / "ranks", *common, "--resume"])
+    assert code == 1 and "3 of 4 photos done, 1 failed, 3 complete before this run;" in out
+    assert summaries == {p: p.stat().st_mtime_ns for p in summaries}  # nothing written again
+    assert len(read_records(tmp_path / "ranks" / INDEX_FILE)) == 4
 
 
 def test_all_people_counts_photos_not_people(

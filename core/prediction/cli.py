@@ -923,8 +923,9 @@ def _final_report(
     if counts is None:  # another rank: rank 0 reports for all
         return 0
     folders = counts.photos_done if counts.people_done is None else counts.people_done
+    wrote = "" if counts.skipped else "wrote "  # --resume: some folders were there before
     written = (
-        f"wrote {counts.files} files in {folders} folder(s) under {out}; index {out / INDEX_FILE}"
+        f"{wrote}{counts.files} files in {folders} folder(s) under {out}; index {out / INDEX_FILE}"
         if folders
         else "nothing written"
     )
