@@ -199,6 +199,16 @@ def test_resume_refuses_overwrite_and_a_plain_rerun_points_to_it(tmp_path, capsy
     assert "not complete results" in capsys.readouterr().err
 
 
+def test_same_person_is_refused_under_torchrun(tmp_path, capsys, monkeypatch) -> None:
+    for key, value in _launch_environment(1, 2, "same").items():
+        monkeypatch.setenv(key, value)
+    assert cli.main(["a.jpg", "b.jpg", "--out", str(tmp_path), "--same-person"]) == 2
+    assert "--same-person combines every photo's shape in one process" in capsys.readouterr().err
+    monkeypatch.setenv("RANK", "2")
+    assert cli.main(["a.jpg", "--out", str(tmp_path)]) == 2
+    assert "do not fit together" in capsys.readouterr().err
+
+
 # --- kill -9 at random moments, then --resume -------------------------------------------
 
 
