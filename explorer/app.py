@@ -364,6 +364,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             reading = getattr(result and result.posterior, "person_box", None)
             choice, places = menu_entries(self.people, box, reading, self.state.image_size)
             self.panels.photo.show_people(len(places), choice, places)
+            self.scene.people_marks.show(self.people)  # numbered on the photo
 
     @property
     def people(self) -> tuple[Box, ...]:

@@ -25,6 +25,7 @@ import viser
 from hkpd.coco_keypoints import COCO17_LIMBS
 from hkpd.explorer.colour_map import HeatmapScale
 from hkpd.explorer.layout import DEFAULT_LAYOUT, ColumnLayout
+from hkpd.explorer.people_marks import PeopleMarks
 from hkpd.explorer.photo_geometry import HALF_TURN_ABOUT_X, PhotoPlacement
 from hkpd.explorer.posterior_view import PosteriorView
 from hkpd.explorer.state import Occluder
@@ -116,6 +117,8 @@ class ExplorerScene:
         """Titles for a saved page (nothing of the live app: no "shift+drag")."""
         self.compared = False
         """B's columns are shown: A's titles say "A" (:meth:`set_compared`)."""
+        self.people_marks = PeopleMarks(self)
+        """The listed people, numbered on the photo (the Person menu's entries)."""
         self.layout = DEFAULT_LAYOUT
         """Where the columns stand (:meth:`set_layout`)."""
         server.scene.set_up_direction("+y")
@@ -237,6 +240,7 @@ class ExplorerScene:
                 self._person_node.remove()
                 self._person_node = None
             self.placement = placement
+            self.people_marks.show(())  # the last photo's people
             add_floor(self.server.scene, left=placement.centre[0] - placement.width_m / 2)
             self.server.scene.add_image(
                 "/photo",
@@ -251,6 +255,11 @@ class ExplorerScene:
                 receive_shadow=False,
             )
             self._occluder_nodes = []
+
+    def photo_points(self, pixels: np.ndarray) -> np.ndarray:
+        """``(..., 2)`` photo pixels (pixel-centre coords) to ``(..., 3)`` photo-local points,
+        lifted off the photo towards the viewer (for drawings on it)."""
+        return self._photo_points(pixels)
 
     def _photo_points(self, pixels: np.ndarray) -> np.ndarray:
         """``(..., 2)`` photo pixels (pixel-centre coords) to ``(..., 3)`` photo-local points."""

@@ -211,6 +211,12 @@ def test_the_person_menu_says_where_each_is_and_shows_a_whole_person_first(monke
         )
         assert menu.value == menu.options[1]
         assert explorer.state.snapshot().person_box == CutOffFirstProvider.BOXES[1]
+        # ... and each listed person is outlined and numbered on the photo.
+        drawn = nodes(explorer)
+        assert {"/photo/people/number_1", "/photo/people/number_2"} <= drawn
+        outlines = explorer.server.scene._handle_from_node_name["/photo/people/outlines"]
+        assert len(outlines.points) == 8  # two boxes of four edges
+        assert explorer.server.scene._handle_from_node_name["/photo/people/number_2"].text == "2"
         assert not explorer.errors
     finally:
         explorer.stop()
