@@ -200,10 +200,13 @@ def test_the_explorer_status_warns_on_a_low_reading_and_shows_a_good_ones_score(
     from hkpd.explorer.panels.status import quality_text
 
     low = quality_text(SimpleNamespace(quality=ReadingQuality(0.2, ("small_person",), {})))
-    assert "Check this reading" in low and "small_person" in low and "0.20" in low
+    assert "Check this reading" in low and "0.20" in low
+    assert FLAG_MEANINGS["small_person"] in low and "small_person" not in low  # words, not names
     assert quality_text(SimpleNamespace(quality=ReadingQuality(0.9, (), {}))) == " *Quality 0.90.*"
     noted = ReadingQuality(0.9, ("small_person",), {})
-    assert quality_text(SimpleNamespace(quality=noted)) == " *Quality 0.90; note: small_person.*"
+    assert quality_text(SimpleNamespace(quality=noted)) == (
+        f" *Quality 0.90; note: {FLAG_MEANINGS['small_person']}.*"
+    )
     warned = ReadingQuality(0.9, ("small_person", "off_centre_in_box"), {})
     text = quality_text(SimpleNamespace(quality=warned))
     assert "Check this reading" in text and FLAG_MEANINGS["off_centre_in_box"] in text
