@@ -69,6 +69,7 @@ from hkpd.explorer.same_person_shapes import combined_photos
 from hkpd.explorer.scene import PHOTO_GAP, ExplorerScene
 from hkpd.explorer.scene_file import PhotoRef
 from hkpd.explorer.scene_keeping import SceneKeeper
+from hkpd.explorer.second_reader_marks import SecondReaderMarks
 from hkpd.explorer.state import MAX_OCCLUDERS, MAX_SAME_PERSON_PHOTOS, ExplorerState, StateSnapshot
 from hkpd.explorer.still_image import captioned_png
 from hkpd.explorer.upload import UploadError, decode_upload
@@ -310,6 +311,15 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
     def show_landmarks(self, visible: bool) -> None:
         """Draw the detected hand and foot landmarks on the photo, or hide them."""
         self.landmark_marks.set_visible(visible)
+
+    @functools.cached_property
+    def second_reader_marks(self) -> SecondReaderMarks:
+        """The second keypoint reader's keypoints on the photo (made at first use, hidden)."""
+        return SecondReaderMarks(self.scene)
+
+    def show_second_reader(self, visible: bool) -> None:
+        """Draw the second keypoint reader's keypoints on the photo, or hide them."""
+        self.second_reader_marks.set_visible(visible)
 
     def set_evidence(self, enabled: bool) -> None:
         """Condition on the photo's 2D keypoints, or show the network alone (predicts again)."""
@@ -606,6 +616,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         self.scene.show_person_box(self.state.snapshot().person_box)
         self.panels.status.source.content = ""
         self.landmark_marks.show(None)
+        self.second_reader_marks.show(None)
         self._show_body(None)
         self._show_turn(None)
         advice = no_person_advice(self.state.snapshot().person_box)
@@ -714,6 +725,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         )
         self._show_turn(posterior)
         self.landmark_marks.show(posterior)
+        self.second_reader_marks.show(posterior)
         self.panels.teaching.show_proxy(result.proxy)
         self.panels.teaching.show_shape_basis(
             posterior, result.proxy, None if overlay is None else overlay.rgba

@@ -234,8 +234,7 @@ class Predictor:
                 evidence on the shape, weighed before the fit.
             reading: a :class:`PhotoReading` from :meth:`read_photo` to use (``image``,
                 ``bbox``, ``upright``, ``silhouette`` then unread); None: the one kept or new.
-            second_reader: also read the person with MoveNet Thunder (once per photo and box;
-                :mod:`hkpd.prediction.reader_agreement`); False: BlazePose alone.
+            second_reader: also read the person with MoveNet Thunder; False: BlazePose alone.
             read_face: let the face tell the sex too (:mod:`hkpd.prediction.face_evidence`:
                 HSE FaceRes on the face square cut from BlazePose's face landmarks, read once
                 per photo and person, calibrated; ``posterior.sex_evidence`` keeps its word

@@ -29,6 +29,7 @@ from hkpd.explorer.panels.same_person import (
     build_same_person_section,
 )
 from hkpd.explorer.panels.samples import SamplesActions, SamplesSection, build_samples_section
+from hkpd.explorer.panels.second_reader import SecondReaderActions, build_second_reader_section
 from hkpd.explorer.panels.status import StatusSection, build_status_section
 from hkpd.explorer.panels.teaching import TeachingSection, build_teaching_section
 from hkpd.explorer.panels.turn import TurnActions, TurnSection, build_turn_section
@@ -43,6 +44,7 @@ class PanelActions(
     CompareActions,
     BodyActions,
     LandmarkActions,
+    SecondReaderActions,
     TurnActions,
     Protocol,
 ):
@@ -82,6 +84,7 @@ def build_panels(server: viser.ViserServer, actions: PanelActions) -> ExplorerPa
     with tabs.add_tab("Photo", viser.Icon.PHOTO):
         photo = build_photo_section(gui, actions)
         build_landmark_section(gui, actions)  # only calls actions.show_landmarks
+        build_second_reader_section(gui, actions)  # only calls actions.show_second_reader
         turn = build_turn_section(gui, actions)
         body = build_body_section(gui, actions)
         same_person = build_same_person_section(gui, actions)
