@@ -264,6 +264,10 @@ def test_summary_json(run_result, checkpoint, photos):
     assert "--bbox" in summary["person"]["note"]
     assert np.asarray(summary["keypoints"]["detected"]).shape == (17, 2)
     assert len(summary["keypoints"]["confidences"]) == 17
+    second = summary["keypoints"]["second_reader"]  # MoveNet Thunder's reading (issue 59)
+    assert second is not None and np.asarray(second["keypoints"]).shape == (17, 2)
+    assert len(second["scores"]) == 17 and len(second["distances"]) == 17
+    assert all(0 <= k < 17 for k in second["disputed"])
     uncertainty = np.load(run_result["out"] / "person" / "prediction.npz")["uncertainty"]
     assert summary["uncertainty"]["mean_m"] == pytest.approx(uncertainty.mean(), rel=1e-4)
     assert summary["uncertainty"]["max_m"] == pytest.approx(uncertainty.max(), rel=1e-4)

@@ -94,6 +94,7 @@ from hkpd.prediction.exports.writers import (
     write_person_mask,
 )
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
+from hkpd.prediction.reader_agreement import second_reading_summary
 from hkpd.prediction.same_person import PhotoShape, combine_photo_shapes, combined_measurements
 
 if TYPE_CHECKING:
@@ -541,6 +542,7 @@ def _photo_summary(
             "detected": detection.keypoints,
             "confidences": detection.confidences,
             "mode_reprojected": mode.keypoints2d[0],
+            "second_reader": second_reading_summary(detection),
         },
         "uncertainty": {
             "mean_m": float(uncertainty.mean()),

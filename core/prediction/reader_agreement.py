@@ -115,3 +115,23 @@ def detection_agreement(detection: object) -> ReaderAgreement | None:
         return None
     size = person_size(detection.person_box)
     return reader_agreement(detection.keypoints, second.keypoints, size)
+
+
+def second_reading_summary(detection: object) -> dict[str, object] | None:
+    """What ``summary.json`` says of the second reader (``keypoints.second_reader``): its
+    keypoints (original-photo pixels) and scores, the distances from BlazePose's as shares of
+    the person's size and the keypoints disputed, the swap gain and the torso offset; None when
+    it did not read the person."""
+    agreement = detection_agreement(detection)
+    if agreement is None:
+        return None
+    second = detection.second_reading
+    return {
+        "reader": "MoveNet SinglePose Thunder",
+        "keypoints": np.round(np.asarray(second.keypoints, np.float64), 2).tolist(),
+        "scores": np.round(np.asarray(second.scores, np.float64), 4).tolist(),
+        "distances": np.round(agreement.distances, 4).tolist(),
+        "disputed": [int(k) for k in np.flatnonzero(agreement.disputed)],
+        "swap_gain": round(agreement.swap_gain, 4),
+        "torso_offset": round(agreement.torso_offset, 4),
+    }
