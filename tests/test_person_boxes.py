@@ -308,3 +308,16 @@ def test_the_real_models_list_a_person_inside_anothers_box_once_each() -> None:
             again = detector.detect(pixels, bbox=reading_box(person))  # as predict_all reads
             assert box_iou(again.person_box, person.person_box) >= 0.8
             assert box_iou(again.person_box, other.person_box) < 0.5
+
+
+@pytest.mark.slow
+def test_predict_all_reads_the_person_inside_anothers_box_once_each() -> None:
+    from hkpd.prediction import Predictor
+
+    torch.set_num_threads(1)
+    predictor = Predictor.from_pretrained(device="cpu")
+    posteriors = predictor.predict_all(person_inside_anothers_box(), sex="male")
+    assert len(posteriors) == 2
+    big, small = (np.asarray(p.person_box, np.float64) for p in posteriors)
+    assert box_iou(big, small) < 0.5  # two people, not one read twice
+    assert inside_fraction(small, big) > 0.9 and small[0] > 600
