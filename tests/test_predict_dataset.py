@@ -29,6 +29,7 @@ from hkpd.prediction import cli
 from hkpd.prediction.cli import PhotoResult
 from hkpd.prediction.dataset_run import (
     INDEX_FILE,
+    INDEX_KEYS,
     WORK_FOLDER,
     Shard,
     latest_records,
@@ -143,6 +144,7 @@ def test_two_ranks_write_what_one_process_writes_bit_for_bit(
     assert left == ["a_person", "b_person", "c_person", INDEX_FILE]
     index = read_records(tmp_path / "ranks" / INDEX_FILE)
     assert sorted({record["rank"] for record in index}) == [0, 1]
+    assert all(tuple(record) == INDEX_KEYS for record in index)
     by_photo = {record["photo"]: record for record in index}
     assert sorted(by_photo) == ["b_person.png", "c_person.png", "damaged.jpg", "more/a_person.png"]
     assert by_photo["damaged.jpg"]["status"].startswith("error: ")
