@@ -94,7 +94,7 @@ from hkpd.prediction.exports.writers import (
     write_person_mask,
 )
 from hkpd.prediction.image_input import IMAGE_SUFFIXES
-from hkpd.prediction.reader_agreement import second_reading_summary
+from hkpd.prediction.reader_agreement import second_reader_outline, second_reading_summary
 from hkpd.prediction.same_person import PhotoShape, combine_photo_shapes, combined_measurements
 
 if TYPE_CHECKING:
@@ -483,6 +483,7 @@ def _write_overview(
         detected_extremities=detection.extremities,
         extremity_shown=prepared.extremity_evidence,
         mode_extremities2d=mode.extremity_keypoints2d[0].cpu().numpy(),
+        **second_reader_outline(detection),
     )
     overview = make_overview(
         prepared.image,

@@ -135,3 +135,18 @@ def second_reading_summary(detection: object) -> dict[str, object] | None:
         "swap_gain": round(agreement.swap_gain, 4),
         "torso_offset": round(agreement.torso_offset, 4),
     }
+
+
+def second_reader_outline(detection: object) -> dict[str, np.ndarray]:
+    """The overview's second-reader fields (``Outlines.second_keypoints``,
+    ``second_disputed``: the second reader's keypoints, the disputed ones those it is confident
+    of, score >= 0.3); empty when it did not read the person."""
+    agreement = detection_agreement(detection)
+    if agreement is None:
+        return {}
+    second = detection.second_reading
+    confident = np.asarray(second.scores, np.float64) >= 0.3
+    return {
+        "second_keypoints": np.asarray(second.keypoints, np.float64),
+        "second_disputed": agreement.disputed & confident,
+    }

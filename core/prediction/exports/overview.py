@@ -46,6 +46,8 @@ MODE_COLOUR = (235, 60, 40)
 SAMPLE_COLOUR = (255, 170, 40)
 SAMPLE_ALPHA = 120
 MASK_COLOUR = (30, 110, 230)
+SECOND_READER_COLOUR = (200, 40, 200)
+"""Magenta: where the second keypoint reader (MoveNet) puts a keypoint the readers dispute."""
 """Outline of BlazePose's person mask."""
 VIEW_DISTANCE_M = 4.0
 """Distance of the virtual camera from the mesh centre in the mesh renders, metres."""
@@ -189,6 +191,7 @@ def draw_skeletons(
     _draw_bones(draw, view.image_to_crop(np.asarray(mode_keypoints2d)), MODE_COLOUR, 2 * line)
     if outlines is not None:
         _draw_extremities(draw, outlines, view, np.asarray(mode_keypoints2d), line)
+        _draw_disputed(draw, outlines, view, np.asarray(keypoints), line)
     radius = 2.5 * line
     for (u, v), confidence in zip(
         view.image_to_crop(np.asarray(keypoints)), confidences, strict=True
@@ -215,6 +218,9 @@ class Outlines:
         extremity_shown: ``(10,)`` bool, which of them were evidence (hollow otherwise).
         mode_extremities2d: ``(10, 2)`` the mode's landmarks reprojected
             (``BodyMeshes.extremity_keypoints2d``), drawn as bones from the wrists and ankles.
+        second_keypoints: ``(17, 2)`` the second keypoint reader's keypoints (MoveNet, issue
+            59), original pixels; those in ``second_disputed`` (``(17,)`` bool) are drawn as
+            magenta crosses joined to BlazePose's keypoint (None: not drawn).
     """
 
     person_mask: PersonMask | None = None
@@ -223,6 +229,13 @@ class Outlines:
     detected_extremities: np.ndarray | None = None
     extremity_shown: np.ndarray | None = None
     mode_extremities2d: np.ndarray | None = None
+    second_keypoints: np.ndarray | None = None
+    second_disputed: np.ndarray | None = None
+
+    @property
+    def shows_second_reader(self) -> bool:
+        """A disputed keypoint of the second reader is drawn (the legend names it)."""
+        return self.second_keypoints is not None and bool(np.any(self.second_disputed))
 
 
 EXTREMITY_BONES = (
@@ -259,6 +272,25 @@ def _draw_extremities(
         fill = (255, 255, 255) if shown is None or shown[index] else None
         draw.rectangle((u - half, v - half, u + half, v + half), fill=fill,
                        outline=(20, 20, 20), width=max(1, line // 2))  # fmt: skip
+
+
+def _draw_disputed(
+    draw: ImageDraw.ImageDraw, outlines: Outlines, view: CropTransform, keypoints: np.ndarray,
+    line: int,
+) -> None:  # fmt: skip
+    """The second reader's disputed keypoints: a magenta cross each, joined to BlazePose's."""
+    if not outlines.shows_second_reader:
+        return
+    first = view.image_to_crop(keypoints)
+    second = view.image_to_crop(np.asarray(outlines.second_keypoints, np.float64))
+    half = 2.0 * line
+    for index in np.flatnonzero(outlines.second_disputed):
+        (u, v), start = second[index], first[index]
+        if not (np.isfinite(second[index]).all() and np.isfinite(start).all()):
+            continue
+        draw.line((*start, u, v), fill=SECOND_READER_COLOUR, width=max(1, line // 2))
+        draw.line((u - half, v - half, u + half, v + half), fill=SECOND_READER_COLOUR, width=line)
+        draw.line((u - half, v + half, u + half, v - half), fill=SECOND_READER_COLOUR, width=line)
 
 
 def _draw_outlines(
@@ -336,15 +368,19 @@ def _draw_legend(
     y: int,
     font: ImageFont.FreeTypeFont | ImageFont.ImageFont,
     with_mask: bool,
+    with_second: bool = False,
 ) -> None:
     """The photo panel's legend (detected keypoints, mode, samples and, ``with_mask``, the
-    mask's outline), one row starting at ``x`` centred on ``y``."""
+    mask's outline; ``with_second``: the second reader's disputed keypoints), one row starting
+    at ``x`` centred on ``y``."""
     draw.ellipse((x, y - 5, x + 10, y + 5), fill=(255, 255, 255), outline=TEXT)
     draw.text((x + 15, y), "detected", fill=TEXT, font=font, anchor="lm")
     legend_x = x + 15 + int(draw.textlength("detected", font=font)) + 14
     entries = [("mode", MODE_COLOUR, 4), ("samples", SAMPLE_COLOUR, 3)]
     if with_mask:
         entries.append(("mask", MASK_COLOUR, 3))
+    if with_second:
+        entries.append(("second reader disagrees", SECOND_READER_COLOUR, 3))
     for label, colour, width in entries:
         draw.line((legend_x, y, legend_x + 22, y), fill=colour, width=width)
         draw.text((legend_x + 27, y), label, fill=TEXT, font=font, anchor="lm")
@@ -416,9 +452,9 @@ def make_overview(
         draw.text((x + 2, title_height - 6), title, fill=TEXT, font=font, anchor="ls")
         x += panel.shape[1] + gap
     legend_y = title_height + height + row_height // 2
-    _draw_legend(
-        draw, gap, legend_y, small, outlines is not None and outlines.person_mask is not None
-    )
+    drawn = outlines or Outlines()
+    _draw_legend(draw, gap, legend_y, small, drawn.person_mask is not None,
+                 drawn.shows_second_reader)  # fmt: skip
     mean_cm, max_cm = 100 * float(values.mean()), 100 * float(values.max())
     stats = f"vertex uncertainty: mean {mean_cm:.1f} cm, max {max_cm:.1f} cm"
     text = f"{stats}   {caption}".strip()
