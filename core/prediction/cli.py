@@ -149,27 +149,6 @@ def build_parser() -> argparse.ArgumentParser:
         f"{' '.join(DEFAULT_FORMATS)})",
     )
     parser.add_argument(
-        "--no-evidence",
-        action="store_true",
-        help="return the network's own distribution instead of conditioning it on the detected "
-        "2D keypoints (the paper's method; docs/evidence.md)",
-    )
-    parser.add_argument(
-        "--no-face",
-        action="store_true",
-        help="do not let the face tell the sex (by default HSE FaceRes reads the face, on this "
-        "machine, and its calibrated word weighs the sexes beside the body's proportions; "
-        "summary.json's sex_evidence keeps each apart; docs/shape.md)",
-    )
-    parser.add_argument(
-        "--silhouette-evidence",
-        action="store_true",
-        help="also condition on BlazePose's person mask: the body's outline is fitted to the "
-        "mask as well as to the keypoints (off by default: it helps people alone in the photo "
-        "in close-fitting clothes; loose clothing or a second person in the mask pulls the "
-        "body wider; docs/shape.md)",
-    )
-    parser.add_argument(
         "--bbox",
         nargs="+",
         metavar="COORD",
@@ -204,9 +183,36 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--device", default="auto", help="auto (CUDA when available), cpu, cuda")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the samples")
+    add_evidence_arguments(parser)
     add_body_arguments(parser)
     add_dataset_arguments(parser)
     return parser
+
+
+def add_evidence_arguments(parser: argparse.ArgumentParser) -> None:
+    """The switches of what the photo's evidence is: ``--no-evidence``, ``--no-face``,
+    ``--silhouette-evidence``."""
+    parser.add_argument(
+        "--no-evidence",
+        action="store_true",
+        help="return the network's own distribution instead of conditioning it on the detected "
+        "2D keypoints (the paper's method; docs/evidence.md)",
+    )
+    parser.add_argument(
+        "--no-face",
+        action="store_true",
+        help="do not let the face tell the sex (by default HSE FaceRes reads the face, on this "
+        "machine, and its calibrated word weighs the sexes beside the body's proportions; "
+        "summary.json's sex_evidence keeps each apart; docs/shape.md)",
+    )
+    parser.add_argument(
+        "--silhouette-evidence",
+        action="store_true",
+        help="also condition on BlazePose's person mask: the body's outline is fitted to the "
+        "mask as well as to the keypoints (off by default: it helps people alone in the photo "
+        "in close-fitting clothes; loose clothing or a second person in the mask pulls the "
+        "body wider; docs/shape.md)",
+    )
 
 
 def parse_bbox(values: Sequence[str] | None) -> tuple[float, float, float, float] | None:
