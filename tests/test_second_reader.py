@@ -100,3 +100,22 @@ def test_thunder_agrees_with_blazepose_on_the_shipped_photo() -> None:
     assert agreement.mean_distance < 0.1, agreement
     assert agreement.swap_gain < 0 and agreement.torso_offset < 0.05
     assert (second.scores > 0.3).sum() >= 12
+
+
+def test_a_face_the_second_reader_does_not_see_makes_the_facing_ambiguous() -> None:
+    """Back views: MoveNet scores the nose and eyes low (quality's facing note)."""
+    from types import SimpleNamespace
+
+    from hkpd.prediction.quality import SECOND_FACE_SCORE, _second_reader_sees_no_face
+
+    def posterior(scores):
+        second = None if scores is None else SimpleNamespace(scores=np.asarray(scores))
+        detection = SimpleNamespace(second_reading=second)
+        return SimpleNamespace(network_input=SimpleNamespace(detection=detection))
+
+    seen = np.full(17, 0.8)
+    unseen = seen.copy()
+    unseen[2] = SECOND_FACE_SCORE / 2  # the right eye
+    assert not _second_reader_sees_no_face(posterior(seen))
+    assert _second_reader_sees_no_face(posterior(unseen))
+    assert not _second_reader_sees_no_face(posterior(None))  # second_reader=False

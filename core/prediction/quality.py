@@ -177,6 +177,12 @@ FACE_BEHIND_SHOULDERS_LOGIT = -1.5
 (``docs/evidence.md``: back views' median -2.0, front views' 0.4 on val2017), or the nose and
 eyes are not all confident."""
 
+SECOND_FACE_SCORE = 0.25
+"""``facing_ambiguous`` also when the second reader (MoveNet Thunder) scores the nose or an eye
+below this: on coco_mini train2017's people labelled by eye (``people_labels.json``, boxes >= 80
+px) it caught all 6 back views and 1 of 36 others (AUROC of its weakest face score for a back
+view 0.99; BlazePose's face-against-shoulders logit: 0.63); on val2017 8 of 10 and 3 of 22."""
+
 MASK_BACKGROUND = 0.2
 """A crop pixel whose person-mask probability is below this counts as background."""
 
@@ -350,7 +356,7 @@ def reading_flags(posterior: BodyPosterior, signals: dict[str, float]) -> tuple[
             posterior.turned
             or (fit is not None and posterior.conditioned and (fit.turned or fit.start == 1))
         ),
-        "facing_ambiguous": facing_ambiguous(confidences),
+        "facing_ambiguous": facing_ambiguous(confidences) or _second_reader_sees_no_face(posterior),
         "readers_disagree": bool(
             signals["readers_disputed_share"] > READERS_DISPUTED_SHARE
             or signals["readers_torso_offset"] > READERS_TORSO_OFFSET
@@ -379,6 +385,16 @@ def facing_ambiguous(confidences: np.ndarray) -> bool:
     behind = face_minus_shoulders(confidences) < FACE_BEHIND_SHOULDERS_LOGIT
     weak = (np.asarray(confidences, dtype=np.float64)[face] < CONFIDENCE_THRESHOLD).any()
     return bool(behind or weak)
+
+
+def _second_reader_sees_no_face(posterior: BodyPosterior) -> bool:
+    """The second reader scores the nose or an eye below :data:`SECOND_FACE_SCORE` (False when
+    it did not read the person)."""
+    prepared = posterior.network_input
+    second = None if prepared is None else getattr(prepared.detection, "second_reading", None)
+    if second is None:
+        return False
+    return bool(np.asarray(second.scores, dtype=np.float64)[:3].min() < SECOND_FACE_SCORE)
 
 
 def _reader_signals(posterior: BodyPosterior) -> dict[str, float]:
