@@ -171,10 +171,3 @@ def test_sex_priors_truncate_with_the_betas(tmp_path) -> None:
     small = BodyModel(load_body_asset(path, num_betas=4))
     mean, covariance = small.sex_shape_prior("male")
     assert mean.shape == (4,) and covariance.shape == (4, 4)
-
-
-def test_the_measurements_jacobian_is_reverse_modes(measurer: BodyMeasurer) -> None:
-    """Forward mode (issue 58: 4x faster) gives the derivatives reverse mode gave."""
-    betas = 0.5 * torch.randn(10, generator=torch.Generator().manual_seed(3)).double()
-    reverse = torch.autograd.functional.jacobian(lambda b: measurer(b[None])[0], betas)
-    torch.testing.assert_close(measurer.jacobian(betas), reverse, rtol=1e-10, atol=1e-12)
