@@ -68,3 +68,19 @@ def test_without_a_second_reading_or_when_most_of_the_body_is_disputed_blazepose
     keypoints, evidence = combined_keypoint_evidence(elsewhere)
     np.testing.assert_array_equal(keypoints, elsewhere.keypoints_crop)
     assert evidence.all()
+
+
+def test_a_disputed_wrist_takes_its_hand_landmarks_out_of_the_evidence() -> None:
+    from hkpd.prediction.second_evidence import landmark_evidence
+
+    first = _body()
+    second = first + 4.0
+    second[9] += 60.0  # the left wrist disputed
+    prepared = _prepared(first, second)
+    prepared.extremity_evidence = np.ones(10, bool)
+    prepared.extremity_evidence[7] = False  # the right heel was not evidence anyway
+    kept = landmark_evidence(prepared)
+    # left pinky, index and thumb (0, 2, 4) hang from the left wrist
+    assert kept.tolist() == [k not in (0, 2, 4, 7) for k in range(10)]
+    prepared.extremity_evidence = None
+    assert landmark_evidence(prepared) is None

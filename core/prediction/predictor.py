@@ -67,7 +67,7 @@ from hkpd.prediction.photo_reading import PhotoReading, PhotoReadingCache, photo
 from hkpd.prediction.posterior import BodyPosterior
 from hkpd.prediction.readings import ReadingConfig, ReadingInput, Readings, ReadingStage
 from hkpd.prediction.readings.upright_view import UprightView
-from hkpd.prediction.second_evidence import combined_keypoint_evidence
+from hkpd.prediction.second_evidence import combined_keypoint_evidence, landmark_evidence
 from hkpd.prediction.sex_fits import fit_each_sex, with_drawn_body, with_sex_shape
 from hkpd.prediction.sex_latent import FaceWord, SexShapes
 from hkpd.prediction.turning import turn_around
@@ -505,7 +505,7 @@ class Predictor:
     def _landmark_terms(self, prepared: NetworkInput) -> list[EvidenceTerm]:
         """The hand and foot landmark term (:mod:`hkpd.conditioning.landmark_term`) when
         switched on and the photo shows at least one of them as evidence; else none."""
-        shown = prepared.extremity_evidence
+        shown = landmark_evidence(prepared)  # less those hanging from a disputed keypoint
         if not self.landmark_evidence or prepared.extremities_crop is None or shown is None:
             return []
         if not shown.any():

@@ -13,6 +13,10 @@ Thunder), :func:`combined_keypoint_evidence` makes one observation of the two, p
   reader's limb, the network's reading of the photo decides and the posterior stays wide there;
 - Thunder unsure (score below :data:`MIN_SECOND_SCORE`): BlazePose's keypoint as it was.
 
+A disputed wrist or ankle takes BlazePose's hand or foot landmarks on that side out of the
+evidence too (:func:`landmark_evidence`): they come from the same reader's reading of that
+limb, and kept they would pin the limb the keypoint no longer does.
+
 When the readers disagree on most of the body (:data:`WHOLE_BODY_DISPUTE`: they likely read
 different people or one is lost) the observation is BlazePose's alone and the quality score
 warns (``readers_disagree``). Occluders and the evidence rule act first: a keypoint that was not
@@ -46,6 +50,33 @@ WHOLE_BODY_DISPUTE = 0.5
 they are (the readers read different people, or one is lost: the quality score warns)."""
 
 
+LANDMARK_KEYPOINT = (9, 10, 9, 10, 9, 10, 15, 16, 15, 16)
+"""The COCO keypoint (wrist or ankle) each BlazePose hand and foot landmark hangs from, in
+:data:`hkpd.body.extremity_landmarks.BLAZEPOSE_EXTREMITY_NAMES` order (left/right pinky, index,
+thumb, heel, foot index)."""
+
+
+def disputed_keypoints(prepared: NetworkInput) -> np.ndarray:
+    """``(17,)`` bool: the keypoints :func:`combined_keypoint_evidence` takes out of the
+    evidence (disputed, Thunder confident; none without a second reading or when most of the
+    body is disputed)."""
+    agreement = detection_agreement(prepared.detection)
+    if agreement is None or agreement.disputed_share > WHOLE_BODY_DISPUTE or not DROP_DISPUTED:
+        return np.zeros(17, bool)
+    confident = np.asarray(prepared.detection.second_reading.scores) >= MIN_SECOND_SCORE
+    return agreement.disputed & confident
+
+
+def landmark_evidence(prepared: NetworkInput) -> np.ndarray | None:
+    """``(10,)`` bool: ``prepared.extremity_evidence`` less the hand and foot landmarks whose
+    wrist or ankle the readers dispute (None when the detection has no landmarks)."""
+    shown = prepared.extremity_evidence
+    if shown is None:
+        return None
+    dropped = disputed_keypoints(prepared)[list(LANDMARK_KEYPOINT)]
+    return np.asarray(shown, bool) & ~dropped
+
+
 def combined_keypoint_evidence(prepared: NetworkInput) -> tuple[np.ndarray, np.ndarray]:
     """The fit's observation of ``prepared`` (module docstring).
 
@@ -66,6 +97,4 @@ def combined_keypoint_evidence(prepared: NetworkInput) -> tuple[np.ndarray, np.n
     agreed = confident & ~agreement.disputed
     mean = (1 - SECOND_READER_WEIGHT) * keypoints + SECOND_READER_WEIGHT * second_crop
     combined = np.where(agreed[:, None], mean, keypoints)
-    if not DROP_DISPUTED:
-        return combined, evidence
-    return combined, evidence & ~(confident & agreement.disputed)
+    return combined, evidence & ~disputed_keypoints(prepared)
