@@ -29,6 +29,7 @@ ROWS = {
     "predict": r"\| occluder: prediction [^|]*\| (\d+) \|",
     "occluder": r"\| \*\*occluder: change -> delivered[^|]*\| (\d+) \|",
     "slider": r"\| \*\*slider: change -> delivered[^|]*\| (\d+) \|",
+    "cpu": r"\| occluder: CPU of the edit[^|]*\| (\d+) \|",
 }
 """The medians (ms) read from ``bench_explorer.py``'s table."""
 
@@ -73,9 +74,9 @@ def main() -> None:
     print(f"# occluder edit, {args.before} vs {args.after}, alternated — "
           f"{time.strftime('%Y-%m-%d %H:%M %Z')}")  # fmt: skip
     print(f"{os.cpu_count()} CPUs, torch threads {args.threads}, shared machine\n")
-    print("| round | version | load before | occluder: predict ms | occluder: change -> "
-          "delivered ms | slider: change -> delivered ms |")  # fmt: skip
-    print("|---:|---|---:|---:|---:|---:|")
+    print("| round | version | load before | occluder: predict ms | occluder: CPU ms | "
+          "occluder: change -> delivered ms | slider: change -> delivered ms |")  # fmt: skip
+    print("|---:|---|---:|---:|---:|---:|---:|")
     with tempfile.TemporaryDirectory() as folder:
         trees = {rev: version_tree(rev, Path(folder)) for rev in results}
         for round_index in range(args.rounds):
@@ -85,16 +86,17 @@ def main() -> None:
                 medians = run_once(trees[revision], args.repeats, args.threads)
                 results[revision].append(medians)
                 row = f"| {round_index + 1} | {revision} | {load:.1f} | {medians['predict']:.0f} "
-                row += f"| {medians['occluder']:.0f} | {medians['slider']:.0f} |"
+                row += f"| {medians['cpu']:.0f} | {medians['occluder']:.0f} "
+                row += f"| {medians['slider']:.0f} |"
                 print(row, flush=True)
     print()
-    print("| version | occluder: predict ms | occluder: change -> delivered ms (target 400) "
-          "| slider ms (target 100) |")  # fmt: skip
-    print("|---|---:|---:|---:|")
+    print("| version | occluder: predict ms | occluder: CPU ms | occluder: change -> delivered ms "
+          "(target 400) | slider ms (target 100) |")  # fmt: skip
+    print("|---|---:|---:|---:|---:|")
     for revision, runs in results.items():
         values = {name: statistics.median(run[name] for run in runs) for name in ROWS}
-        print(f"| {revision} | {values['predict']:.0f} | {values['occluder']:.0f} "
-              f"| {values['slider']:.0f} |")  # fmt: skip
+        print(f"| {revision} | {values['predict']:.0f} | {values['cpu']:.0f} "
+              f"| {values['occluder']:.0f} | {values['slider']:.0f} |")  # fmt: skip
 
 
 if __name__ == "__main__":
