@@ -26,6 +26,7 @@ import viser
 from hkpd.distributions import MatrixFisher
 from hkpd.explorer.app_body import BodyAppActions
 from hkpd.explorer.app_keeping import KeepingActions
+from hkpd.explorer.app_marks import PhotoMarksActions
 from hkpd.explorer.app_turning import TurnAppActions
 from hkpd.explorer.body_settings import NOTHING_STATED, BodyStatement
 from hkpd.explorer.canvas_key import CanvasKey
@@ -35,7 +36,6 @@ from hkpd.explorer.colour_map import HeatmapScale
 from hkpd.explorer.compare import Comparison
 from hkpd.explorer.compare_scene import CompareColumns
 from hkpd.explorer.export import meshes_file
-from hkpd.explorer.extremity_marks import ExtremityMarks
 from hkpd.explorer.framing import (
     ASSUMED_ASPECT,
     CAMERA_FOV_DEG,
@@ -69,7 +69,6 @@ from hkpd.explorer.same_person_shapes import combined_photos
 from hkpd.explorer.scene import PHOTO_GAP, ExplorerScene
 from hkpd.explorer.scene_file import PhotoRef
 from hkpd.explorer.scene_keeping import SceneKeeper
-from hkpd.explorer.second_reader_marks import SecondReaderMarks
 from hkpd.explorer.state import MAX_OCCLUDERS, MAX_SAME_PERSON_PHOTOS, ExplorerState, StateSnapshot
 from hkpd.explorer.still_image import captioned_png
 from hkpd.explorer.upload import UploadError, decode_upload
@@ -106,7 +105,7 @@ class Timings:
     """B's sampling and drawing after A's (0 without a comparison)."""
 
 
-class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
+class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions, PhotoMarksActions):
     """The running explorer (its scene and compare actions: :mod:`hkpd.explorer.app_keeping`;
     its Body section's: :mod:`hkpd.explorer.app_body`).
 
@@ -302,24 +301,6 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             self.scene.show_fit_overlay(None, None)
         else:
             self.scene.show_fit_overlay(overlay.with_opacity(opacity), overlay.box)
-
-    @functools.cached_property
-    def landmark_marks(self) -> ExtremityMarks:
-        """The detected hand and foot landmarks on the photo (made at first use)."""
-        return ExtremityMarks(self.scene)
-
-    def show_landmarks(self, visible: bool) -> None:
-        """Draw the detected hand and foot landmarks on the photo, or hide them."""
-        self.landmark_marks.set_visible(visible)
-
-    @functools.cached_property
-    def second_reader_marks(self) -> SecondReaderMarks:
-        """The second keypoint reader's keypoints on the photo (made at first use, hidden)."""
-        return SecondReaderMarks(self.scene)
-
-    def show_second_reader(self, visible: bool) -> None:
-        """Draw the second keypoint reader's keypoints on the photo, or hide them."""
-        self.second_reader_marks.set_visible(visible)
 
     def set_evidence(self, enabled: bool) -> None:
         """Condition on the photo's 2D keypoints, or show the network alone (predicts again)."""
@@ -615,8 +596,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
         self.scene.show_occluders(self.state.snapshot().occluders)
         self.scene.show_person_box(self.state.snapshot().person_box)
         self.panels.status.source.content = ""
-        self.landmark_marks.show(None)
-        self.second_reader_marks.show(None)
+        self._show_marks(None)
         self._show_body(None)
         self._show_turn(None)
         advice = no_person_advice(self.state.snapshot().person_box)
@@ -724,8 +704,7 @@ class ExplorerApp(KeepingActions, BodyAppActions, TurnAppActions):
             posterior.keypoints.cpu().numpy(), posterior.confidences.cpu().numpy()
         )
         self._show_turn(posterior)
-        self.landmark_marks.show(posterior)
-        self.second_reader_marks.show(posterior)
+        self._show_marks(posterior)
         self.panels.teaching.show_proxy(result.proxy)
         self.panels.teaching.show_shape_basis(
             posterior, result.proxy, None if overlay is None else overlay.rgba
