@@ -60,5 +60,11 @@ def test_a_box_over_a_foot_hides_its_landmarks(predictor: Predictor) -> None:
     assert not shown[rows].any() and shown[[i for i in range(10) if i not in rows]].all()
     assert not covered.network_input.evidence[16]
     parts = ("right_ankle", "right_foot")  # the foot and the toes
-    ratio = sum(part_spread(covered, p) for p in parts) / sum(part_spread(clear, p) for p in parts)
-    assert ratio > 1.4
+    spread = {name: sum(part_spread(posterior, p) for p in parts) for name, posterior in
+              (("clear", clear), ("covered", covered))}  # fmt: skip
+    # 1.48 while the fit tempered every joint's prior; since issue 58 item 3 a joint the evidence
+    # does not read keeps the network's full weight (1.32 on this photo), so the covered foot is
+    # no wider than the network alone says it is.
+    assert spread["covered"] / spread["clear"] > 1.25
+    network = predictor.predict(photo, occluders=[box], evidence=False)
+    assert spread["covered"] <= 1.1 * sum(part_spread(network, p) for p in parts)
