@@ -140,8 +140,6 @@ def entry_text(name: str, value: float, std: float) -> str:
     return f"{shown} ± {in_field_units(name, std):g}"
 
 
-
-
 def parse_field(name: str, text: str) -> StatedValue | None:
     """What is typed into measurement ``name``'s field, in metres or kilograms.
 

@@ -30,9 +30,9 @@ HUMAN_MODELS = ("faceres", "nanodet", "movenet-thunder")
   ``(1, 3, 416, 416)`` NCHW, RGB in 0..1; it reads people best (coco_mini train2017: AP50
   0.67 against 0.50) letterboxed, BGR, ``(value - mean) / std`` on 0..255 with NanoDet's own
   mean and std (:mod:`hkpd.prediction.detection.person_detector`). Outputs per stride 8/16/32
-  (52², 26², 13² cells, row-major): class scores ``Identity``/``Identity_1``/``Identity_2`` ``(1, cells, 80)``
-  (after a sigmoid) and box-side distributions ``Identity_3``/``Identity_4``/``Identity_5``
-  ``(1, cells, 44)`` (4 sides × 11 bins).
+  (52², 26², 13² cells, row-major): class scores ``Identity``/``Identity_1``/``Identity_2``
+  ``(1, cells, 80)`` (after a sigmoid) and box-side distributions
+  ``Identity_3``/``Identity_4``/``Identity_5`` ``(1, cells, 44)`` (4 sides × 11 bins).
 - ``movenet-thunder``: MoveNet SinglePose Thunder. Input ``input`` int32
   ``(1, 256, 256, 3)``, RGB 0..255. Output ``Identity`` ``(1, 1, 17, 3)``: COCO-17 keypoints
   as (y, x, score), y and x in 0..1 of the input.
