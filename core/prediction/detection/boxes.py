@@ -118,10 +118,15 @@ def tile_bounds(width: int, height: int, tiles: int) -> list[tuple[int, int, int
     return bounds
 
 
-def box_iou(first: np.ndarray, second: np.ndarray) -> float:
-    """Intersection over union of two ``(x0, y0, x1, y1)`` boxes (0 for empty boxes)."""
+def box_intersection(first: np.ndarray, second: np.ndarray) -> float:
+    """Area (pixels²) of the overlap of two ``(x0, y0, x1, y1)`` boxes (0 when apart)."""
     low = np.maximum(first[:2], second[:2])
     high = np.minimum(first[2:], second[2:])
-    inter = float(np.prod(np.clip(high - low, 0, None)))
+    return float(np.prod(np.clip(high - low, 0, None)))
+
+
+def box_iou(first: np.ndarray, second: np.ndarray) -> float:
+    """Intersection over union of two ``(x0, y0, x1, y1)`` boxes (0 for empty boxes)."""
+    inter = box_intersection(first, second)
     union = float(np.prod(first[2:] - first[:2]) + np.prod(second[2:] - second[:2])) - inter
     return inter / union if union > 0 else 0.0

@@ -28,7 +28,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hkpd.prediction.detection.boxes import box_iou
+from hkpd.prediction.detection.boxes import box_intersection, box_iou
 
 __all__ = [
     "BOX_MARGIN",
@@ -70,8 +70,7 @@ def inside_fraction(inner: np.ndarray, outer: np.ndarray) -> float:
     area = float(np.prod(np.clip(inner[2:] - inner[:2], 0, None)))
     if area <= 0:
         return 0.0
-    overlap = np.clip(np.minimum(inner[2:], outer[2:]) - np.maximum(inner[:2], outer[:2]), 0, None)
-    return float(np.prod(overlap)) / area
+    return box_intersection(inner, outer) / area
 
 
 def read_fits_box(keypoints: np.ndarray, confident: np.ndarray, box: np.ndarray) -> bool:
